@@ -1,0 +1,435 @@
+"""The ``jaxtube`` command line.
+
+Subcommands (one ``_add_<name>`` function registers each; add a new one to
+``_SUBCOMMANDS``):
+
+- ``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
+  in :mod:`jaxtube._spec`), compile and run the load path, and write ``path.csv``,
+  ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
+
+Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
+are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).
+
+Steps are numbered from 1 (step 1 is the first load increment; the undeformed state is
+step 0 and is not listed).
+
+``path.csv`` columns, one row per step:
+
+- ``step``; ``load_factor`` (1 under displacement control);
+- ``control_displacement_mm``: displacement of the path node along the path direction;
+- ``control_force_N``: the actuator's force along the direction (displacement control) or
+  the applied point force at the path node along it (force control);
+- ``control_node_dx_mm``, ``control_node_dy_mm``, ``control_node_dz_mm``: the path node's
+  displacement vector;
+- ``max_moment_Nm`` (largest joint moment magnitude), ``max_bending_moment_Nm`` (bending
+  part only);
+- ``joints_wrinkled``, ``joints_collapsed`` (counts), ``worst_regime`` (0 unwrinkled,
+  1 wrinkled, 2 collapsed);
+- ``converged`` (1 or 0), ``iterations`` (Newton steps), ``residual`` (KKT residual),
+  ``status`` (the solver's result in words).
+
+``summary.json``: spec path, name, control, steps, converged count, failed steps with
+reasons, the last converged step (force, displacement), peak force, wall times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import functools
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from ._mechanics import configuration, initial_state, reference_geometry, spring_joints
+from ._model import DisplacementControl, Solution, solve_path
+from ._solver import RESULT_MESSAGES
+from ._spec import LoadedSpec, SpecError, load_spec
+
+OUTPUT_FILES = ("path.csv", "force_deflection.png", "deformed_shape.png", "summary.json")
+CSV_COLUMNS = (
+    "step", "load_factor", "control_displacement_mm", "control_force_N",
+    "control_node_dx_mm", "control_node_dy_mm", "control_node_dz_mm",
+    "max_moment_Nm", "max_bending_moment_Nm", "joints_wrinkled", "joints_collapsed",
+    "worst_regime", "converged", "iterations", "residual", "status",
+)
+
+
+# ------------------------------------------------------------------------------------------
+# Parser
+# ------------------------------------------------------------------------------------------
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    return value
+
+
+def _add_simulate(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "simulate", help="run the load path of a TOML spec and write results",
+        description="Load a TOML structure spec, follow its load path and write path.csv, "
+                    "force_deflection.png, deformed_shape.png and summary.json into --out.")
+    parser.add_argument("spec", type=Path, help="the TOML spec file")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output directory (created; existing files of the same names "
+                             "are replaced, other files are left alone)")
+    parser.add_argument("--steps", type=_positive_int, default=None,
+                        help="number of load steps (overrides [path].steps)")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print only problems (failed steps, errors)")
+    parser.set_defaults(run=_simulate)
+
+
+_SUBCOMMANDS = (_add_simulate,)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``jaxtube`` argument parser, with one subparser per subcommand."""
+    from . import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="jaxtube", description="Differentiable simulator of inflatable tube structures.")
+    parser.add_argument("--version", action="version", version=f"jaxtube {__version__}")
+    subparsers = parser.add_subparsers(title="subcommands", metavar="COMMAND")
+    for add in _SUBCOMMANDS:
+        add(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxtube`` command; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help(sys.stderr)
+        return 2
+    return args.run(args)
+
+
+# ------------------------------------------------------------------------------------------
+# simulate
+# ------------------------------------------------------------------------------------------
+
+
+class _Reporter:
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+
+    def progress(self, message: str) -> None:
+        if not self.quiet:
+            print(message, file=sys.stderr, flush=True)
+
+    def problem(self, message: str) -> None:
+        print(message, file=sys.stderr, flush=True)
+
+    def result(self, message: str) -> None:
+        if not self.quiet:
+            print(message, flush=True)
+
+
+def _simulate(args) -> int:
+    report = _Reporter(args.quiet)
+    started = time.perf_counter()
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        report.problem(f"error: --out {out} exists and is not a directory")
+        return 2
+    try:
+        spec = load_spec(args.spec, steps=args.steps)
+    except SpecError as error:
+        report.problem(f"error: invalid spec\n{error}")
+        return 2
+    structure, params, path, meta = spec
+    joint_node = _joint_nodes(spec)
+    target = (f"to {meta.path_values[-1] * 1e3:g} mm" if meta.control == "displacement"
+              else f"to load factor {meta.path_values[-1]:g}")
+    report.progress(
+        f"loaded {args.spec}: {len(structure.tube_names)} tube(s), {structure.node_count} "
+        f"nodes, {structure.segment_count} segments, {len(joint_node)} spring joints; "
+        f"{meta.control} control of {meta.control_node_ref} along "
+        f"{_vector_text(meta.control_direction)} {target} in {meta.steps} steps")
+    loaded = time.perf_counter()
+
+    report.progress("compiling the solver (the first run of a structure takes a while) ...")
+    solver = jax.jit(functools.partial(solve_path, structure))
+    compiled = solver.lower(params, path).compile()
+    compiled_at = time.perf_counter()
+    report.progress(f"compiled in {compiled_at - loaded:.1f} s; solving {meta.steps} steps ...")
+    solution = jax.block_until_ready(compiled(params, path))
+    solved_at = time.perf_counter()
+    report.progress(f"solved in {solved_at - compiled_at:.2f} s")
+
+    table = path_table(spec, solution, joint_node)
+    failed = np.flatnonzero(~table["converged"])
+    for line in _failure_lines(table):
+        report.problem(line)
+
+    times = {"load_s": loaded - started, "compile_s": compiled_at - loaded,
+             "solve_s": solved_at - compiled_at}
+    summary = _summary(args, spec, table, times)
+    figures = _figures(spec, solution, table, joint_node)
+    write_outputs(out, table, figures, summary, started)
+    _print_summary(report, table, summary, out)
+    if failed.size:
+        report.problem(f"warning: {failed.size} of {table['step'].size} steps did not converge "
+                       "(marked converged = 0 in path.csv)")
+        return 1
+    return 0
+
+
+def _vector_text(vector) -> str:
+    return "(" + ", ".join(f"{float(x):.3g}" for x in np.asarray(vector) + 0.0) + ")"
+
+
+def _joint_nodes(spec: LoadedSpec) -> tuple[int, ...]:
+    """Node index of every spring joint, in the order of ``Solution.joint_regime``.
+
+    The joint list is static, so an abstract evaluation (no compilation) is enough.
+    """
+    structure, params = spec.structure, spec.params
+
+    def joints():
+        geometry = reference_geometry(structure, params)
+        state = initial_state(structure, params)
+        config = configuration(structure, geometry, state)
+        return spring_joints(structure, geometry, config, state)
+
+    return jax.eval_shape(joints).node
+
+
+def path_table(spec: LoadedSpec, solution: Solution, joint_node) -> dict[str, np.ndarray]:
+    """Per-step results as numpy columns (names as in ``CSV_COLUMNS``; SI converted to mm).
+
+    Under force control the control displacement is the path node's displacement along
+    the path direction and the control force the applied point force there along it.
+    """
+    meta, params = spec.metadata, spec.params
+    node, direction = meta.control_node, meta.control_direction
+    reference = np.asarray(params.node_position)[node]
+    moved = np.asarray(solution.node_position)[:, node] - reference  # [K, 3]
+    load_factor = np.asarray(solution.load_factor, dtype=float).reshape(-1)
+    steps = moved.shape[0]
+    if isinstance(spec.path, DisplacementControl):
+        displacement = np.asarray(solution.control_displacement, dtype=float)
+        force = np.asarray(solution.control_force, dtype=float)
+    else:
+        displacement = moved @ direction
+        applied = float(np.asarray(params.node_force)[node] @ direction)
+        force = load_factor * applied
+    moment = np.asarray(solution.joint_moment, dtype=float)  # [K, J, 3]
+    regime = np.asarray(solution.joint_regime, dtype=int).reshape(steps, -1)
+    has_joints = regime.shape[1] > 0
+    converged = np.asarray(solution.converged, dtype=bool).reshape(-1)
+    codes = np.asarray(solution.result, dtype=int).reshape(-1)
+    return {
+        "step": np.arange(1, steps + 1),
+        "load_factor": np.broadcast_to(load_factor, (steps,)),
+        "control_displacement_mm": displacement * 1e3,
+        "control_force_N": force,
+        "control_node_dx_mm": moved[:, 0] * 1e3,
+        "control_node_dy_mm": moved[:, 1] * 1e3,
+        "control_node_dz_mm": moved[:, 2] * 1e3,
+        "max_moment_Nm": (np.linalg.norm(moment, axis=-1).max(axis=-1) if has_joints
+                          else np.zeros(steps)),
+        "max_bending_moment_Nm": (np.linalg.norm(moment[..., :2], axis=-1).max(axis=-1)
+                                  if has_joints else np.zeros(steps)),
+        "joints_wrinkled": (regime == 1).sum(axis=1),
+        "joints_collapsed": (regime == 2).sum(axis=1),
+        "worst_regime": regime.max(axis=1) if has_joints else np.zeros(steps, dtype=int),
+        "converged": converged,
+        "iterations": np.asarray(solution.iterations, dtype=int).reshape(-1),
+        "residual": np.asarray(solution.residual, dtype=float).reshape(-1),
+        "status": np.array([RESULT_MESSAGES.get(int(c), f"unknown result code {int(c)}")
+                            for c in codes]),
+    }
+
+
+def _ranges(steps) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"``."""
+    parts, steps = [], list(steps)
+    start = prev = None
+    for s in steps + [None]:
+        if s is not None and prev is not None and s == prev + 1:
+            prev = s
+            continue
+        if start is not None:
+            parts.append(f"{start}" if start == prev else f"{start}-{prev}")
+        start = prev = s
+    return ", ".join(parts)
+
+
+def _failure_lines(table) -> list[str]:
+    """Non-converged steps in words, grouped by reason."""
+    failed = ~table["converged"]
+    lines = []
+    for message in dict.fromkeys(table["status"][failed]):
+        chosen = failed & (table["status"] == message)
+        steps = table["step"][chosen]
+        worst = np.nanmax(table["residual"][chosen]) if np.any(
+            np.isfinite(table["residual"][chosen])) else float("nan")
+        plural = "s" if steps.size > 1 else ""
+        lines.append(f"step{plural} {_ranges(steps.tolist())} of {table['step'].size} did not "
+                     f"converge: {message} (largest KKT residual {worst:.3g})")
+    return lines
+
+
+def _json_number(value):
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _summary(args, spec: LoadedSpec, table, times) -> dict:
+    from . import __version__
+
+    meta = spec.metadata
+    converged = table["converged"]
+    done = np.flatnonzero(converged)
+    final = None
+    if done.size:
+        k = int(done[-1])
+        final = {"step": int(table["step"][k]),
+                 "load_factor": _json_number(table["load_factor"][k]),
+                 "displacement_mm": _json_number(table["control_displacement_mm"][k]),
+                 "force_N": _json_number(table["control_force_N"][k]),
+                 "max_moment_Nm": _json_number(table["max_moment_Nm"][k]),
+                 "worst_regime": int(table["worst_regime"][k])}
+    forces = np.where(converged, table["control_force_N"], np.nan)
+    peak = int(np.nanargmax(np.abs(forces))) if np.any(np.isfinite(forces)) else None
+    return {
+        "spec": str(Path(args.spec).resolve()),
+        "name": meta.name,
+        "description": meta.description,
+        "jaxtube_version": __version__,
+        "control": meta.control,
+        "control_node": meta.control_node_ref,
+        "control_direction": meta.control_direction.tolist(),
+        "steps": int(table["step"].size),
+        "converged_steps": int(converged.sum()),
+        "failed_steps": [
+            {"step": int(table["step"][k]), "reason": str(table["status"][k]),
+             "residual": _json_number(table["residual"][k])}
+            for k in np.flatnonzero(~converged)],
+        "final": final,
+        "final_force_N": None if final is None else final["force_N"],
+        "final_displacement_mm": None if final is None else final["displacement_mm"],
+        "peak_force_N": None if peak is None else _json_number(forces[peak]),
+        "peak_force_step": None if peak is None else int(table["step"][peak]),
+        "wall_time_s": {key: round(value, 3) for key, value in times.items()},
+        "outputs": list(OUTPUT_FILES),
+    }
+
+
+def _figures(spec: LoadedSpec, solution: Solution, table, joint_node) -> dict:
+    from ._plot import deformed_shape_figure, force_deflection_figure
+
+    meta, params = spec.metadata, spec.params
+    label = meta.name or Path(meta.source).stem
+    direction = _vector_text(meta.control_direction)
+    deflection = force_deflection_figure(
+        table["control_displacement_mm"], table["control_force_N"], table["worst_regime"],
+        table["converged"], title=f"{label}: {meta.control} control of "
+                                  f"{meta.control_node_ref}",
+        xlabel=f"displacement of {meta.control_node_ref} along {direction} [mm]",
+        ylabel=f"force along {direction} [N]")
+    factors = np.asarray(solution.load_factor, dtype=float).reshape(-1)
+    point_force = factors[:, None, None] * np.asarray(params.node_force)[None]
+    control = None
+    if meta.control == "displacement":
+        control = (meta.control_node, meta.control_direction, table["control_force_N"])
+    shape = deformed_shape_figure(
+        spec.structure, np.asarray(params.node_position), np.asarray(solution.node_position),
+        table["converged"], joint_node=joint_node, joint_regime=np.asarray(
+            solution.joint_regime), point_force=point_force, control=control, title=label)
+    return {"force_deflection.png": deflection, "deformed_shape.png": shape}
+
+
+def _write_csv(path: Path, table) -> None:
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(CSV_COLUMNS)
+        for k in range(table["step"].size):
+            row = []
+            for column in CSV_COLUMNS:
+                value = table[column][k]
+                if column == "converged":
+                    row.append(int(bool(value)))
+                elif isinstance(value, (float, np.floating)):
+                    row.append(f"{float(value):.10g}")
+                else:
+                    row.append(str(value))
+            writer.writerow(row)
+
+
+def write_outputs(out: Path, table, figures: dict, summary: dict, started: float) -> None:
+    """Write the outputs atomically: into a temporary directory next to ``out``, then
+    renamed to ``out`` (or, if ``out`` exists, each file moved over its namesake). A
+    failure leaves ``out`` as it was."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    try:
+        _write_csv(staging / "path.csv", table)
+        for name, figure in figures.items():
+            figure.savefig(staging / name, dpi=120)
+        summary = dict(summary)
+        summary["wall_time_s"] = dict(summary["wall_time_s"],
+                                      total_s=round(time.perf_counter() - started, 3))
+        with open(staging / "summary.json", "w") as file:
+            json.dump(summary, file, indent=2, allow_nan=False)
+            file.write("\n")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(staging, 0o777 & ~umask)
+        if out.is_dir():
+            for name in sorted(p.name for p in staging.iterdir()):
+                os.replace(staging / name, out / name)
+            staging.rmdir()
+        else:
+            os.replace(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+def _print_summary(report: _Reporter, table, summary, out: Path) -> None:
+    steps = table["step"].size
+    rows = np.unique(np.linspace(0, steps - 1, min(steps, 10)).round().astype(int))
+    header = (f"{'step':>5} {'load factor':>11} {'displ. [mm]':>11} {'force [N]':>10} "
+              f"{'max |M| [N m]':>13} {'wrinkled':>8} {'collapsed':>9}  status")
+    lines = [header]
+    for k in rows:
+        lines.append(
+            f"{table['step'][k]:>5d} {table['load_factor'][k]:>11.4g} "
+            f"{table['control_displacement_mm'][k]:>11.4g} {table['control_force_N'][k]:>10.4g} "
+            f"{table['max_moment_Nm'][k]:>13.4g} {table['joints_wrinkled'][k]:>8d} "
+            f"{table['joints_collapsed'][k]:>9d}  {table['status'][k]}")
+    final = summary["final"]
+    lines.append(f"converged: {summary['converged_steps']} of {steps} steps")
+    if final is not None:
+        lines.append(f"last converged step {final['step']}: displacement "
+                     f"{final['displacement_mm']:.4g} mm, force {final['force_N']:.4g} N")
+    if summary["peak_force_N"] is not None:
+        lines.append(f"peak force {summary['peak_force_N']:.4g} N at step "
+                     f"{summary['peak_force_step']}")
+    wall = summary["wall_time_s"]
+    lines.append(f"time: compile {wall['compile_s']:.1f} s, solve {wall['solve_s']:.2f} s")
+    lines.append(f"wrote {', '.join(OUTPUT_FILES)} to {out}")
+    report.result("\n".join(lines))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,364 @@
+"""Kinematics and total potential energy of a rigid-segment tube structure.
+
+State (a PyTree, so that new kinds of degrees of freedom can join later)::
+
+    {"root_position": [3] m, "joint_rotation": [S, 3] rad}
+
+``joint_rotation[s]`` is the rotation vector of segment ``s`` relative to its orientation
+parent, in the joint frame (its third axis is the tube axis there), so its first two
+components are bending and the third is torsion (Breukels & Ockels 2008). The deformed
+frame of segment ``s`` is::
+
+    Q_s = Q_parent(s) H_pre,s exp(theta_s) H_post,s
+
+where ``H_pre H_post`` is the reference relative rotation. Between two segments of one tube
+``H_pre = H_post`` = half the reference bend (the joint frame bisects the two axes, so an
+arc's bending and torsion are split symmetrically); where a tube is attached to another,
+``H_pre`` is the whole reference rotation and the joint frame is the attached tube's.
+
+Frames and positions are composed along the kinematic tree by pointer jumping: ``ceil(log2
+depth)`` rounds of batched gathers and 3x3 products, fully vectorised for chains and trees.
+
+Energy (per unit length laws, PHYSICS.md section 1): joint ``j`` with rotation ``theta`` and
+tributary length ``l`` has curvature ``kappa = theta / l`` and energy
+``l [W_bend(kappa_1^2 + kappa_2^2) + W_twist(kappa_3^2)]``, isotropic in the cross-section.
+Loads are dead: point forces and torques, uniform line loads and self-weight (lumped at
+segment midpoints, which is exact for a rigid segment).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._rotation import (
+    inverse_right_jacobian_transpose,
+    matmul3,
+    matvec3,
+    minimal_rotation,
+    rotation_matrix,
+    rotation_vector,
+    transpose3,
+)
+from ._structure import (
+    GROUND,
+    JOINT_ATTACH,
+    JOINT_BEND,
+    Structure,
+    StructureParameters,
+)
+
+_E3 = np.array([0.0, 0.0, 1.0])
+
+
+def take_rows(values: Array, index) -> Array:
+    """``values[index]`` for a static integer ``index`` along axis 0, without a gather.
+
+    Reverse-mode differentiation turns a gather into a scatter-add, which XLA runs very
+    slowly on CPU (and it sits inside every Hessian). A contiguous index becomes a slice;
+    any other index a product with a constant one-hot matrix, whose transpose is another
+    small dense product.
+    """
+    index = np.asarray(index, dtype=np.int64).reshape(-1)
+    count = values.shape[0]
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return values[int(index[0]) : int(index[0]) + index.size]
+    one_hot = np.zeros((index.size, count), dtype=np.float64)
+    one_hot[np.arange(index.size), index] = 1.0
+    return jnp.tensordot(jnp.asarray(one_hot, dtype=values.dtype), values, axes=1)
+
+
+def _rounds(parents: tuple[int, ...]) -> int:
+    depth = np.zeros(len(parents), dtype=int)
+    for s, p in enumerate(parents):  # BFS order: parents precede children
+        depth[s] = 1 if p == GROUND else depth[p] + 1
+    return int(np.ceil(np.log2(max(int(depth.max(initial=1)), 1))))
+
+
+def compose_along_tree(local: Array, parents: tuple[int, ...], combine, identity: Array) -> Array:
+    """Prefix composition from the root: ``out[s] = combine(out[parent[s]], local[s])``.
+
+    ``combine`` must be associative; ``identity`` is its neutral element (the ground).
+    Pointer jumping (Hillis & Steele 1986) over a static tree: ``[S, ...] -> [S, ...]``.
+    """
+    count = len(parents)
+    ancestor = np.array([count if p == GROUND else p for p in parents] + [count], dtype=np.int32)
+    values = jnp.concatenate([local, identity[None]], axis=0)
+    for _ in range(_rounds(parents)):
+        values = combine(take_rows(values, ancestor), values)
+        ancestor = ancestor[ancestor]
+    return values[:count]
+
+
+def _tangent_frame(tangent: Array) -> Array:
+    """A right-handed frame ``[d1 d2 d3]`` (columns) with ``d3 = tangent``; ``[S,3]->[S,3,3]``."""
+    up = jnp.where(
+        (jnp.abs(tangent[:, 2]) > 0.9)[:, None], jnp.array([1.0, 0.0, 0.0]),
+        jnp.array([0.0, 0.0, 1.0]),
+    )
+    d1 = up - jnp.sum(up * tangent, axis=-1, keepdims=True) * tangent
+    d1 = d1 / jnp.linalg.norm(d1, axis=-1, keepdims=True)
+    d2 = jnp.cross(tangent, d1)
+    return jnp.stack([d1, d2, tangent], axis=-1)
+
+
+class ReferenceGeometry(eqx.Module):
+    """Reference quantities derived (differentiably) from the reference node positions.
+
+    Shapes: ``S`` segments, ``D`` derived joints.
+    """
+
+    frame: Array  # [S, 3, 3] reference material frames (columns d1, d2, d3 = tube axis)
+    length: Array  # [S] m
+    end_vector: Array  # [S, 3] kinematic start -> end in the segment's material frame, m
+    pre: Array  # [S, 3, 3] H_pre
+    post: Array  # [S, 3, 3] H_post
+    tributary: Array  # [S] m
+    derived_reference: Array  # [D, 3, 3] reference relative rotation Q_a0^T Q_b0
+    derived_tributary: Array  # [D] m
+
+
+def reference_geometry(structure: Structure, params: StructureParameters) -> ReferenceGeometry:
+    """Reference frames (parallel transport along the tree), lengths and joint splits."""
+    a = np.array([n[0] for n in structure.segment_nodes], dtype=np.int32)
+    b = np.array([n[1] for n in structure.segment_nodes], dtype=np.int32)
+    x = params.node_position
+    chord = x[b] - x[a]
+    length = jnp.linalg.norm(chord, axis=-1)
+    tangent = chord / length[:, None]
+    parents = structure.orientation_parent
+    is_root = np.array([p == GROUND for p in parents])
+    parent_index = np.array([max(p, 0) for p in parents], dtype=np.int32)
+    # World rotation taking the parent's axis to this segment's axis (parallel transport).
+    transport = minimal_rotation(tangent[parent_index], tangent)
+    local = jnp.where(is_root[:, None, None], _tangent_frame(tangent), transport)
+    frame = compose_along_tree(local, parents, lambda anc, own: matmul3(own, anc), jnp.eye(3))
+
+    kind = np.array(structure.joint_kind)
+    parent_frame = frame[parent_index]
+    relative = matmul3(transpose3(parent_frame), frame)  # Q_p0^T Q_s0
+    axis_in_parent = matvec3(transpose3(parent_frame), tangent)
+    bisector = axis_in_parent + _E3
+    bisector = bisector / jnp.linalg.norm(bisector, axis=-1, keepdims=True)
+    half = minimal_rotation(jnp.broadcast_to(_E3, bisector.shape), bisector)
+    eye = jnp.broadcast_to(jnp.eye(3), relative.shape)
+    bend = (kind == JOINT_BEND)[:, None, None]
+    attach = (kind == JOINT_ATTACH)[:, None, None]
+    pre = jnp.where(bend, half, jnp.where(attach, relative, eye))
+    post = jnp.where(bend, half, eye)
+    parent_length = length[parent_index]
+    tributary = jnp.where(kind == JOINT_BEND, 0.5 * (length + parent_length), 0.5 * length)
+
+    sign = np.array(
+        [1.0 if st == nodes[0] else -1.0
+         for st, nodes in zip(structure.segment_start, structure.segment_nodes)]
+    )
+    end_vector = (sign * length)[:, None] * _E3
+
+    if structure.derived_frames:
+        da = np.array([f[0] for f in structure.derived_frames], dtype=np.int32)
+        db = np.array([f[1] for f in structure.derived_frames], dtype=np.int32)
+        ground = (da == GROUND)[:, None, None]
+        frame_a = jnp.where(ground, frame[db], frame[np.maximum(da, 0)])
+        derived_reference = matmul3(transpose3(frame_a), frame[db])
+        dkind = np.array(structure.derived_kind)
+        derived_tributary = jnp.where(
+            dkind == JOINT_BEND, 0.5 * (length[db] + length[np.maximum(da, 0)]), 0.5 * length[db]
+        )
+    else:
+        derived_reference = jnp.zeros((0, 3, 3))
+        derived_tributary = jnp.zeros((0,))
+    return ReferenceGeometry(
+        frame=frame, length=length, end_vector=end_vector, pre=pre, post=post,
+        tributary=tributary, derived_reference=derived_reference,
+        derived_tributary=derived_tributary,
+    )
+
+
+class Configuration(eqx.Module):
+    """Deformed configuration. Shapes: ``S`` segments, ``N`` nodes, ``D`` derived joints."""
+
+    frame: Array  # [S, 3, 3] deformed material frames
+    segment_start: Array  # [S, 3] m
+    segment_end: Array  # [S, 3] m
+    node_position: Array  # [N, 3] m
+    derived_rotation: Array  # [D, 3] rad, in the frame of segment b
+
+
+def initial_state(structure: Structure, params: StructureParameters) -> dict:
+    """The undeformed state: zero joint rotations, root at its reference position."""
+    return {
+        "root_position": params.node_position[structure.root_node],
+        "joint_rotation": jnp.zeros((structure.segment_count, 3)),
+    }
+
+
+def configuration(structure: Structure, geometry: ReferenceGeometry, state: dict) -> Configuration:
+    """Deformed frames and positions from the state (forward kinematics along the tree)."""
+    theta = state["joint_rotation"]
+    joint = matmul3(matmul3(geometry.pre, rotation_matrix(theta)), geometry.post)
+    is_root = np.array([p == GROUND for p in structure.orientation_parent])
+    local = jnp.where(is_root[:, None, None], matmul3(geometry.frame, joint), joint)
+    frame = compose_along_tree(
+        local, structure.orientation_parent, lambda anc, own: matmul3(anc, own), jnp.eye(3)
+    )
+    step = matvec3(frame, geometry.end_vector)
+    offset = compose_along_tree(
+        step, structure.position_parent, lambda anc, own: anc + own, jnp.zeros(3)
+    )
+    segment_end = state["root_position"] + offset
+    segment_start = segment_end - step
+    node_segment = np.array(structure.node_segment, dtype=np.int32)
+    node_position = jnp.where(
+        (node_segment >= 0)[:, None], take_rows(segment_end, np.maximum(node_segment, 0)),
+        state["root_position"],
+    )
+    if structure.derived_frames:
+        da = np.array([f[0] for f in structure.derived_frames], dtype=np.int32)
+        db = np.array([f[1] for f in structure.derived_frames], dtype=np.int32)
+        frame_b = take_rows(frame, db)
+        frame_a = jnp.where(
+            (da == GROUND)[:, None, None], take_rows(geometry.frame, db),
+            take_rows(frame, np.maximum(da, 0)),
+        )
+        relative = matmul3(transpose3(frame_a), frame_b)
+        derived = rotation_vector(matmul3(transpose3(geometry.derived_reference), relative))
+    else:
+        derived = jnp.zeros((0, 3))
+    return Configuration(
+        frame=frame, segment_start=segment_start, segment_end=segment_end,
+        node_position=node_position, derived_rotation=derived,
+    )
+
+
+class JointSet(eqx.Module):
+    """All springs in one flat list: tree joints with springs, then derived joints."""
+
+    rotation: Array  # [J, 3] rad, joint frame
+    tributary: Array  # [J] m
+    post: Array  # [J, 3, 3] joint frame -> frame of ``frame_segment`` (H_post)
+    node: tuple[int, ...] = eqx.field(static=True)  # [J] node of each joint
+    law_tube: tuple[int, ...] = eqx.field(static=True)  # [J] tube whose law applies
+    frame_segment: tuple[int, ...] = eqx.field(static=True)  # [J] segment giving the frame
+
+
+def spring_joints(
+    structure: Structure, geometry: ReferenceGeometry, config: Configuration, state: dict
+) -> JointSet:
+    """Gather every joint that carries a spring (free, pinned joints are left out)."""
+    tree = np.array([s for s, spring in enumerate(structure.joint_spring) if spring], np.int32)
+    rotation = jnp.concatenate([take_rows(state["joint_rotation"], tree), config.derived_rotation])
+    tributary = jnp.concatenate([geometry.tributary[tree], geometry.derived_tributary])
+    derived_post = jnp.broadcast_to(jnp.eye(3), (len(structure.derived_frames), 3, 3))
+    return JointSet(
+        rotation=rotation,
+        tributary=tributary,
+        post=jnp.concatenate([geometry.post[tree], derived_post]),
+        node=tuple(structure.joint_node[s] for s in tree) + structure.derived_node,
+        law_tube=tuple(structure.joint_law_tube[s] for s in tree) + structure.derived_law_tube,
+        frame_segment=tuple(int(s) for s in tree) + tuple(f[1] for f in structure.derived_frames),
+    )
+
+
+def _law_groups(law_tube: tuple[int, ...]) -> dict[int, np.ndarray]:
+    groups: dict[int, list[int]] = {}
+    for j, t in enumerate(law_tube):
+        groups.setdefault(t, []).append(j)
+    return {t: np.array(js, dtype=np.int32) for t, js in groups.items()}
+
+
+def strain_energy(joints: JointSet, params: StructureParameters) -> Array:
+    """Sum over joints of ``l [W_bend(kappa_b^2) + W_twist(kappa_t^2)]`` [J]."""
+    total = jnp.zeros(())
+    radius_all = take_rows(params.node_radius, joints.node)
+    for tube, idx in _law_groups(joints.law_tube).items():
+        length = take_rows(joints.tributary, idx)
+        curvature = take_rows(joints.rotation, idx) / length[:, None]
+        pressure = params.pressure[tube]
+        radius = take_rows(radius_all, idx)
+        bend_sq = curvature[:, 0] ** 2 + curvature[:, 1] ** 2
+        twist_sq = curvature[:, 2] ** 2
+        w = params.bending_laws[tube].energy_density(bend_sq, pressure, radius)
+        w = w + params.torsion_laws[tube].energy_density(twist_sq, pressure, radius)
+        total = total + jnp.sum(length * w)
+    return total
+
+
+def joint_moments(joints: JointSet, params: StructureParameters) -> tuple[Array, Array]:
+    """Joint moment vectors in the joint frame [N m] and regimes (0/1/2), shapes ``[J, 3]``,
+    ``[J]``. Bending moment ``M(|kappa_b|) kappa_b / |kappa_b|``; torsion ``M_t(kappa_3)``.
+    The regime is the worse of the bending and torsion regimes."""
+    count = joints.rotation.shape[0]
+    moment = jnp.zeros((count, 3))
+    regime = jnp.zeros((count,), dtype=jnp.int32)
+    radius_all = params.node_radius[np.array(joints.node, dtype=np.int32)]
+    for tube, idx in _law_groups(joints.law_tube).items():
+        curvature = joints.rotation[idx] / joints.tributary[idx][:, None]
+        pressure, radius = params.pressure[tube], radius_all[idx]
+        bend = jnp.sqrt(curvature[:, 0] ** 2 + curvature[:, 1] ** 2)
+        safe = jnp.where(bend > 0, bend, 1.0)
+        law_b, law_t = params.bending_laws[tube], params.torsion_laws[tube]
+        scale = jnp.where(bend > 0, law_b.moment(bend, pressure, radius) / safe,
+                          law_b.initial_stiffness(pressure, radius))
+        m = jnp.concatenate(
+            [scale[:, None] * curvature[:, :2],
+             law_t.moment(curvature[:, 2], pressure, radius)[:, None]], axis=1,
+        )
+        moment = moment.at[idx].set(m)
+        r = jnp.maximum(law_b.regime(bend, pressure, radius),
+                        law_t.regime(curvature[:, 2], pressure, radius))
+        regime = regime.at[idx].set(r.astype(jnp.int32))
+    return moment, regime
+
+
+def segment_loads(structure: Structure, geometry: ReferenceGeometry, params) -> Array:
+    """Resultant distributed load on each segment (line load + self-weight), ``[S, 3]`` [N]."""
+    tube = np.array(structure.segment_tube, dtype=np.int32)
+    per_length = params.line_load[tube] + params.mass_per_length[tube][:, None] * params.gravity
+    return per_length * geometry.length[:, None]
+
+
+def load_potential(
+    structure: Structure, geometry: ReferenceGeometry, config: Configuration, params
+) -> Array:
+    """Potential of the dead loads [J]: ``-sum F.x - sum q L . x_mid - sum T . psi``.
+
+    Torques act on the segment ending at their node; ``psi`` is that segment's rotation
+    vector from the reference (a conservative axial-vector torque, exact for a fixed axis).
+    """
+    potential = -jnp.sum(params.node_force * config.node_position)
+    midpoint = 0.5 * (config.segment_start + config.segment_end)
+    potential = potential - jnp.sum(segment_loads(structure, geometry, params) * midpoint)
+    if structure.torque_nodes:
+        seg = np.array([structure.node_segment[n] for n in structure.torque_nodes], np.int32)
+        increment = matmul3(take_rows(config.frame, seg), transpose3(take_rows(geometry.frame, seg)))
+        potential = potential - jnp.sum(params.node_torque * rotation_vector(increment))
+    return potential
+
+
+def support_constraints(structure: Structure, config: Configuration, state: dict, params) -> Array:
+    """Equality constraints [m]: the root and every other support stay at their reference
+    positions; every closed loop closes. Their multipliers are minus the reaction forces."""
+    parts = [state["root_position"] - params.node_position[structure.root_node]]
+    for node, _kind in structure.supports[1:]:
+        parts.append(config.node_position[node] - params.node_position[node])
+    for segment, node in structure.closures:
+        parts.append(config.segment_end[segment] - config.node_position[node])
+    return jnp.concatenate(parts)
+
+
+def world_joint_moments(config: Configuration, joints: JointSet, moment: Array) -> Array:
+    """Physical joint moments in the world frame, ``[J, 3]`` [N m].
+
+    ``moment`` is the law's ``dW/dtheta``. The moment transmitted through a finite rotation
+    is ``J_r(theta)^{-T} dW/dtheta`` in the frame after ``exp(theta)``, which is
+    ``Q_s H_post^T`` (``Q_s = Q_parent H_pre exp(theta) H_post``). The difference is second
+    order in the joint rotation, but it makes support moments balance exactly.
+    """
+    seg = np.array(joints.frame_segment, dtype=np.int32)
+    joint_frame = matmul3(take_rows(config.frame, seg), transpose3(joints.post))
+    physical = matvec3(inverse_right_jacobian_transpose(joints.rotation), moment)
+    return matvec3(joint_frame, physical)
+

@@ -1,0 +1,271 @@
+"""Equilibrium of a structure at one load level, and load paths by stepping inside ``jit``.
+
+Controls:
+
+- :class:`ForceControl`: the point forces, torques and line loads of the parameters are
+  scaled by each load factor; self-weight stays on (gravity is not a test load).
+- :class:`DisplacementControl`: one node is driven along a unit direction
+  (``(x - X) . d = u``); the force the actuator applies along ``d`` is the constraint's
+  reaction. This traces softening and the collapse plateau, where force control fails.
+
+The path is a ``lax.scan`` over steps, each warm-started from the previous one; every step's
+solution carries its own convergence flag. Gradients w.r.t. the parameters come by the
+implicit function theorem at every step.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._mechanics import (
+    ReferenceGeometry,
+    configuration,
+    initial_state,
+    joint_moments,
+    load_potential,
+    reference_geometry,
+    spring_joints,
+    strain_energy,
+    support_constraints,
+    world_joint_moments,
+)
+from ._solver import NewtonKKT, solve_equilibrium
+from ._structure import GROUND, JOINT_GROUND, Structure, StructureParameters
+
+
+class ForceControl(eqx.Module):
+    """Load factors ``[K]`` applied to the point forces, torques and line loads."""
+
+    load_factors: Array
+
+    def __init__(self, load_factors):
+        self.load_factors = jnp.asarray(load_factors, dtype=float)
+
+
+class DisplacementControl(eqx.Module):
+    """Drive ``node`` (global index) along unit ``direction [3]`` by ``displacements [K]`` [m]."""
+
+    node: int = eqx.field(static=True)
+    direction: Array
+    displacements: Array
+
+    def __init__(self, node: int, direction, displacements):
+        self.node = int(node)
+        direction = jnp.asarray(direction, dtype=float)
+        self.direction = direction / jnp.linalg.norm(direction)
+        self.displacements = jnp.asarray(displacements, dtype=float)
+
+
+class Solution(eqx.Module):
+    """Equilibrium of a structure (one load level; under a path every leaf gains a leading
+    ``[K]`` step axis).
+
+    Attributes:
+        state: ``{"root_position": [3], "joint_rotation": [S, 3]}``.
+        multipliers: ``[m]`` Lagrange multipliers (supports, loops, control).
+        converged, iterations, result, residual: solver report (see RESULT_MESSAGES).
+        node_position: deformed node positions ``[N, 3]`` [m].
+        joint_rotation: rotation vectors of the spring joints ``[J, 3]`` [rad].
+        joint_curvature: ``[J, 3]`` [1/m] (bending 1, bending 2, twist).
+        joint_moment: joint frame ``[J, 3]`` [N m]; joint_moment_world: world frame.
+        joint_regime: ``[J]`` 0 unwrinkled, 1 wrinkled, 2 collapsed.
+        reaction_force: force each support exerts on the structure ``[n_supports, 3]`` [N].
+        reaction_moment: moment each support exerts on the structure ``[n_supports, 3]``
+            [N m] (clamps; zero for pins).
+        control_force: force applied by the displacement actuator along its direction [N]
+            (under force control: the applied force at that node along it, or 0).
+        control_displacement: ``(x - X) . d`` at the controlled node [m].
+        load_factor: the force-control factor (1 under displacement control).
+    """
+
+    state: dict
+    multipliers: Array
+    converged: Array
+    iterations: Array
+    result: Array
+    residual: Array
+    node_position: Array
+    joint_rotation: Array
+    joint_curvature: Array
+    joint_moment: Array
+    joint_moment_world: Array
+    joint_regime: Array
+    reaction_force: Array
+    reaction_moment: Array
+    control_force: Array
+    control_displacement: Array
+    load_factor: Array
+
+
+def scale_loads(params: StructureParameters, factor) -> StructureParameters:
+    """Parameters with point forces, torques and line loads multiplied by ``factor``."""
+    return eqx.tree_at(
+        lambda p: (p.node_force, p.node_torque, p.line_load),
+        params,
+        (params.node_force * factor, params.node_torque * factor, params.line_load * factor),
+    )
+
+
+def total_energy(structure: Structure, params, geometry: ReferenceGeometry, state) -> Array:
+    """Total potential energy: joint strain energy plus the potential of the dead loads [J]."""
+    config = configuration(structure, geometry, state)
+    joints = spring_joints(structure, geometry, config, state)
+    return strain_energy(joints, params) + load_potential(structure, geometry, config, params)
+
+
+def _constraints(structure, geometry, state, params, control):
+    config = configuration(structure, geometry, state)
+    c = support_constraints(structure, config, state, params)
+    if control is not None:
+        node, direction, value = control
+        moved = config.node_position[node] - params.node_position[node]
+        c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
+    return c
+
+
+def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
+    state = eq.state
+    config = configuration(structure, geometry, state)
+    joints = spring_joints(structure, geometry, config, state)
+    moment, regime = joint_moments(joints, params)
+    n_support = len(structure.supports)
+    reactions = -jnp.reshape(eq.multipliers[: 3 * n_support], (n_support, 3))
+    world_moment = world_joint_moments(config, joints, moment)
+    # A clamp joint's spring moment m acts on its segment as -m (the ground side is fixed).
+    clamp_of_support = np.zeros((n_support, world_moment.shape[0]))
+    support_index = {node: k for k, (node, _) in enumerate(structure.supports)}
+    tree = [s for s, spring in enumerate(structure.joint_spring) if spring]
+    kinds = [structure.joint_kind[s] for s in tree] + list(structure.derived_kind)
+    grounded = [structure.orientation_parent[s] == GROUND for s in tree] + [
+        a == GROUND for a, _ in structure.derived_frames]
+    for j, (node, kind, ground) in enumerate(zip(joints.node, kinds, grounded)):
+        if ground and kind == JOINT_GROUND and node in support_index:
+            clamp_of_support[support_index[node], j] = -1.0
+    reaction_moment = jnp.asarray(clamp_of_support) @ world_moment
+    if control is not None:
+        node, direction, _ = control
+        control_force = -eq.multipliers[-1]
+        displacement = jnp.dot(config.node_position[node] - params.node_position[node], direction)
+    else:
+        control_force = jnp.zeros(())
+        displacement = jnp.zeros(())
+    return Solution(
+        state=state,
+        multipliers=eq.multipliers,
+        converged=eq.converged,
+        iterations=eq.iterations,
+        result=eq.result,
+        residual=eq.residual,
+        node_position=config.node_position,
+        joint_rotation=joints.rotation,
+        joint_curvature=joints.rotation / joints.tributary[:, None],
+        joint_moment=moment,
+        joint_moment_world=world_moment,
+        joint_regime=regime,
+        reaction_force=reactions,
+        reaction_moment=reaction_moment,
+        control_force=control_force,
+        control_displacement=displacement,
+        load_factor=jnp.asarray(factor, dtype=float),
+    )
+
+
+def equilibrium(
+    structure: Structure,
+    params: StructureParameters,
+    control: DisplacementControl | None = None,
+    displacement=None,
+    initial=None,
+    solver: NewtonKKT = NewtonKKT(),
+) -> Solution:
+    """Solve one equilibrium.
+
+    Without ``control`` the loads in ``params`` act as given. With a
+    :class:`DisplacementControl`, ``displacement`` [m] is imposed (default: its last value).
+    ``initial`` is a previous :class:`Solution` to warm-start from.
+    """
+    geometry = reference_geometry(structure, params)
+    ctrl = None
+    if control is not None:
+        value = control.displacements[-1] if displacement is None else displacement
+        ctrl = (control.node, control.direction, jnp.asarray(value, dtype=float))
+    state0 = initial_state(structure, params) if initial is None else initial.state
+    lam0 = None if initial is None else initial.multipliers
+    return _solve(structure, params, geometry, ctrl, state0, lam0, solver, 1.0)
+
+
+def _solve(structure, params, geometry, ctrl, state0, lam0, solver, factor) -> Solution:
+    def energy(state, args):
+        p, g, _ = args
+        return total_energy(structure, p, g, state)
+
+    def constraints(state, args):
+        p, g, c = args
+        return _constraints(structure, g, state, p, None if c is None else (ctrl[0], c[0], c[1]))
+
+    c_args = None if ctrl is None else (ctrl[1], ctrl[2])
+    eq = solve_equilibrium(
+        energy, constraints, state0, (params, geometry, c_args), solver, lam0
+    )
+    return _post_process(structure, params, geometry, eq, ctrl, factor)
+
+
+def solve_path(
+    structure: Structure,
+    params: StructureParameters,
+    path: ForceControl | DisplacementControl,
+    solver: NewtonKKT = NewtonKKT(),
+) -> Solution:
+    """Follow a load path by stepping (``lax.scan``); returns a :class:`Solution` whose
+    leaves have a leading step axis ``[K]``. Each step is warm-started from the previous
+    one and reports its own convergence."""
+    geometry = reference_geometry(structure, params)
+    state0 = initial_state(structure, params)
+    m_support = 3 * len(structure.supports) + 3 * len(structure.closures)
+
+    if isinstance(path, DisplacementControl):
+        lam0 = jnp.zeros((m_support + 1,))
+
+        def step(carry, value):
+            state, lam = carry
+            ctrl = (path.node, path.direction, value)
+            sol = _solve(structure, params, geometry, ctrl, state, lam, solver, 1.0)
+            return (sol.state, sol.multipliers), sol
+
+        _, sols = jax.lax.scan(step, (state0, lam0), path.displacements)
+        return sols
+
+    lam0 = jnp.zeros((m_support,))
+
+    def step(carry, factor):
+        state, lam = carry
+        scaled = scale_loads(params, factor)
+        sol = _solve(structure, scaled, geometry, None, state, lam, solver, factor)
+        return (sol.state, sol.multipliers), sol
+
+    _, sols = jax.lax.scan(step, (state0, lam0), path.load_factors)
+    return sols
+
+
+def check_converged(solution: Solution, what: str = "solve") -> None:
+    """Raise ``RuntimeError`` naming every step that did not converge (host-side helper)."""
+    from ._solver import RESULT_MESSAGES
+
+    converged = np.atleast_1d(np.asarray(solution.converged))
+    if converged.all():
+        return
+    codes = np.atleast_1d(np.asarray(solution.result))
+    residual = np.atleast_1d(np.asarray(solution.residual))
+    bad = np.flatnonzero(~converged)
+    lines = [
+        f"step {k}: {RESULT_MESSAGES.get(int(codes[k]), 'unknown')} "
+        f"(KKT residual {residual[k]:.3g})"
+        for k in bad[:10]
+    ]
+    more = f" and {len(bad) - 10} more" if len(bad) > 10 else ""
+    raise RuntimeError(f"{what}: {len(bad)} of {converged.size} steps did not converge:\n  "
+                       + "\n  ".join(lines) + more)
