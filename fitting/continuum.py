@@ -48,13 +48,28 @@ the section normal is axial force and does not shear)::
 
     gamma = V cos(theta) / S,        S = p pi r^2 + k G t 2 pi r    [N]
 
-At the root the section rotation is the clamp rotation ``theta(0) = M(0) / k_clamp``
-(zero for a rigid clamp). The equations are integrated from the tip (``M = 0``, known
-``V``) to the root with :func:`scipy.integrate.solve_ivp` (DOP853, rtol 1e-10), so the
-moment of the weight on the deformed part beyond ``s`` accumulates naturally; the unknown
-tip angle is found by shooting on the root condition (Brent's method on the bracket
-``[-pi/2, pi/2]``, where the residual changes sign). Displacement control (:meth:`tip_force`)
-solves for tip angle and load together (MINPACK hybrid Powell), with a bracketed fallback.
+Boundary conditions: at the root ``x = y = 0`` and the section rotation is the clamp
+rotation ``theta(0) = M(0) / k_clamp`` (zero for a rigid clamp); at the free end
+``M(L) = 0``.
+
+Solution method. Because the tube is inextensible, ``V(s)`` is known in closed form for
+any shape, so the equations can be integrated from the root to the tip with
+:func:`scipy.integrate.solve_ivp` (DOP853, rtol 1e-10) from a trial *root curvature*
+``kappa_0`` (``M(0) = M(kappa_0)``); the moment of the weight on the deformed part beyond
+``s`` is carried by ``dM/ds = -V dx/ds`` (equivalent to a tip-to-root integration with
+``(x, y, theta, M, V)``). Shooting on ``M(L) = 0``, which increases monotonically with
+``kappa_0``, is done by Brent's method on a doubling bracket. Shooting on the root
+curvature rather than the tip angle keeps every trial finite and well-conditioned on a
+collapse plateau: a tip-angle trial runs into ``M >= M_c`` (infinite curvature) whenever
+the load is too large for it, while a root-curvature trial only ever sees ``|M| <= M(0)``
+until it turns past vertical, which flags it as run-away.
+
+Displacement control (:meth:`CantileverModel.tip_force`, :meth:`CantileverModel.curve`)
+solves for ``(kappa_0, P)`` together: continuation in the deflection from the unloaded
+state (secant predictor, Broyden-updated Newton corrector with step halving; unknowns
+``asinh(kappa_0 / kappa_s)`` and ``P / P_s``), adaptive step, and Brent on the load as a
+last resort. This follows the curve wherever it is monotone, including the collapse
+plateau of a softening law.
 
 The tip deflection is measured from the *unloaded* shape (``P = 0``, which sags under
 self-weight), as a bench test zeroes its gauge.
@@ -62,9 +77,11 @@ self-weight), as a bench test zeroes its gauge.
 Closed form (:func:`elastica_tip`): the elliptic-integral elastica of a cantilever with a
 dead tip load (Mattiasson 1981; PHYSICS.md section 4).
 
-Sources: PHYSICS.md sections 2 and 4; Comer & Levy, AIAA J. 1 (1963); Fichter, NASA TN
-D-3507 (1966); Le van & Wielgosz, Thin-Walled Struct. 43 (2005); Mattiasson, IJNME 17
-(1981); Reissner, ZAMP 23 (1972) for the planar shear-deformable kinematics.
+Sources: PHYSICS.md sections 2 and 4; Comer & Levy, AIAA J. 1 (1963) (wrinkling and
+collapse moments); Fichter, NASA technical note (1966), and Le van & Wielgosz,
+Thin-Walled Struct. 43 (2005) (pressure term in the shear stiffness); Mattiasson, Int. J.
+Numer. Meth. Eng. 17 (1981) (elliptic-integral elastica); Reissner, ZAMP 23 (1972) (planar
+shear-deformable finite-strain beam kinematics).
 """
 
 from __future__ import annotations
@@ -83,7 +100,7 @@ from scipy.integrate import solve_ivp
 GRAVITY = 9.81  # m/s^2
 BAR = 1.0e5  # Pa
 
-# Curvature [x 1/L] used past the law's moment limit (only run-away trials get there).
+# Curvatures beyond this [x 1/L] are capped: only run-away trials get there.
 _RUNAWAY_CURVATURE = 1.0e8
 # Displacement control gives up beyond this many force scales (0.01 EI / L^2 for a linear law).
 _MAX_LOAD_FACTOR = 1.0e8
@@ -455,9 +472,9 @@ def elastica_tip(alpha: float) -> tuple[float, float, float]:
     # residual -> -sqrt(alpha) as theta0 -> 0 and -> +inf as theta0 -> pi/2.
     theta0 = optimize.brentq(residual, 1e-300, 0.5 * math.pi - 1e-15, xtol=1e-300, rtol=4 * _EPS)
     m, phi1 = parts(theta0)
-    v = 1.0 - 2.0 / math.sqrt(alpha) * (special.ellipe(m) - special.ellipeinc(phi1, m))
+    v = 1.0 - 2.0 / math.sqrt(alpha) * float(special.ellipe(m) - special.ellipeinc(phi1, m))
     u = 1.0 - math.sqrt(2.0 * math.sin(theta0) / alpha)
-    return theta0, v, u
+    return float(theta0), v, u
 
 
 # ---------------------------------------------------------------------------------------
@@ -480,7 +497,7 @@ class _Shot(NamedTuple):
     solution: object  # solve_ivp result (dense output when requested)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class CantileverShape:
     """Equilibrium centreline, root to tip (arrays of shape ``[n]``).
 
@@ -579,10 +596,11 @@ class CantileverModel:
         def rhs(s, state):
             theta, moment = state[2], state[3]
             resultant = load + weight * (length - s)  # V: downward resultant beyond s [N]
-            if abs(moment) < limit:
-                kappa = float(curvature(float(moment)))
-            else:  # only reached by a trial that is running away anyway
-                kappa = math.copysign(_RUNAWAY_CURVATURE / length, moment)
+            # Past the moment limit (or at absurd curvature) the trial is running away
+            # anyway; a capped curvature lets it turn past vertical in a few steps.
+            kappa = float(curvature(float(moment))) if abs(moment) < limit else math.inf
+            if not abs(kappa) <= runaway_curvature:
+                kappa = math.copysign(runaway_curvature, moment)
             cos_t, sin_t = math.cos(theta), math.sin(theta)
             if shear is None:
                 dx, dy = cos_t, sin_t
@@ -597,6 +615,10 @@ class CantileverModel:
             return abs(state[2]) - _RUNAWAY_ANGLE
 
         turned_past_vertical.terminal = True
+        runaway_curvature = _RUNAWAY_CURVATURE / length
+        if not abs(root_curvature) <= runaway_curvature:
+            sign = 1 if root_curvature > 0.0 else -1
+            return _Shot(sign, 0.0, 0.0, sign * _RUNAWAY_ANGLE, 0.0, length, None)
         root_moment = float(law.moment(float(root_curvature)))
         root_rotation = 0.0 if self.clamp_stiffness is None else root_moment / self.clamp_stiffness
         moment_scale = max(abs(root_moment), self._moment_scale)
@@ -767,29 +789,35 @@ class CantileverModel:
         """Follow the equilibrium path from ``history[-1]`` to the deflection ``target``.
 
         ``history`` holds ``(deflection [m], scaled unknowns)`` of solved points on one side
-        of zero, starting with the unloaded state; the predictor extrapolates the last two
-        linearly (from the unloaded state alone, the small-load response). A failed
-        corrector halves the step. Solved points are appended to ``history``. Returns
+        of zero, starting with the unloaded state. Predictor: linear extrapolation of the
+        physical root curvature and the load through the last two points (from the unloaded
+        state alone, the small-load response); extrapolating ``asinh`` linearly would
+        overshoot wildly. Corrector: :meth:`_newton_force`. A failed corrector halves the
+        step, a success doubles it. Solved points are appended to ``history``. Returns
         ``(unknowns, jacobian)`` at ``target``, or None.
         """
+        kappa_scale = self._curvature_scale
         step = target - history[-1][0]
         while abs(step) > 1e-6 * abs(target):
-            last = history[-1][0]
+            last, unknowns = history[-1]
             next_deflection = target if abs(target - last) <= abs(step) else last + step
+            curvature = kappa_scale * math.sinh(unknowns[0])
             if len(history) >= 2:
-                (d0, u0), (d1, u1) = history[-2], history[-1]
-                guess = u1 + (next_deflection - d1) / (d1 - d0) * (u1 - u0)
+                previous_deflection, previous = history[-2]
+                run = last - previous_deflection
+                curvature_rate = (curvature - kappa_scale * math.sinh(previous[0])) / run
+                load_rate = (unknowns[1] - previous[1]) / run
             else:
-                compliance, curvature_rate = self._linear_response
-                load = next_deflection / compliance
-                guess = np.array(
-                    [
-                        math.asinh(
-                            (self._unloaded[0] + curvature_rate * load) / self._curvature_scale
-                        ),
-                        load / self._force_scale,
-                    ]
-                )
+                compliance, curvature_per_load = self._linear_response
+                curvature_rate = curvature_per_load / compliance
+                load_rate = 1.0 / (compliance * self._force_scale)
+            increment = next_deflection - last
+            guess = np.array(
+                [
+                    math.asinh((curvature + increment * curvature_rate) / kappa_scale),
+                    unknowns[1] + increment * load_rate,
+                ]
+            )
             solved = self._newton_force(next_deflection, guess, jacobian)
             if solved is None:
                 step *= 0.5
@@ -803,8 +831,8 @@ class CantileverModel:
         return None
 
     def _unloaded_history(self) -> list:
-        unloaded = np.array([math.asinh(self._unloaded[0] / self._curvature_scale), 0.0])
-        return [(0.0, unloaded)]
+        """``[(0, scaled unknowns of the unloaded state)]``: where continuation starts."""
+        return [(0.0, np.array([math.asinh(self._unloaded[0] / self._curvature_scale), 0.0]))]
 
     def _bracketed_force(self, target: float) -> float:
         """Robust fallback: Brent on the load, each evaluation a full shooting solve.
@@ -827,9 +855,11 @@ class CantileverModel:
                 return optimize.brentq(excess, lo, hi, xtol=1e-14 * abs(hi), rtol=4 * _EPS)
             lo, hi = hi, 2.0 * hi
         raise DeflectionOutOfReach(
-            f"tip deflection {target:.6g} m is beyond the reach of the model "
-            f"({self.law.name}, L={self.length} m): loads up to {lo:.4g} N give only "
-            f"{self.tip_deflection(lo):.6g} m"
+            f"tip deflection {target:.6g} m not reached by the model ({self.law.name}, "
+            f"L={self.length} m): the largest load solved, {lo:.4g} N, gives "
+            f"{self.tip_deflection(lo):.6g} m. Either the deflection is beyond the model's "
+            "reach, or the tube would hang so nearly vertical that shooting is "
+            "ill-conditioned (load parameter P L^2 / EI above about 1000)."
         )
 
     @functools.cached_property
@@ -863,17 +893,11 @@ class CantileverModel:
         if solved is not None:
             return self._to_physical(solved[0])[1], solved[1]
         load = self._bracketed_force(target)
-        history.append(
-            (
-                target,
-                np.array(
-                    [
-                        math.asinh(self._shoot(load)[0] / self._curvature_scale),
-                        load / self._force_scale,
-                    ]
-                ),
-            )
+        root_curvature = self._shoot(load)[0]
+        unknowns = np.array(
+            [math.asinh(root_curvature / self._curvature_scale), load / self._force_scale]
         )
+        history.append((target, unknowns))
         return load, None
 
     def tip_force(self, deflection: float) -> float:

@@ -86,10 +86,10 @@ class Equilibrium(eqx.Module):
     constraint_violation: Array
 
 
-def _kkt_matrix(hessian, jacobian, mu):
+def _kkt_matrix(hessian, jacobian, mu, delta=0.0):
     n, m = hessian.shape[0], jacobian.shape[0]
     top = jnp.concatenate([hessian + mu * jnp.eye(n, dtype=hessian.dtype), jacobian.T], axis=1)
-    bottom = jnp.concatenate([jacobian, jnp.zeros((m, m), dtype=hessian.dtype)], axis=1)
+    bottom = jnp.concatenate([jacobian, -delta * jnp.eye(m, dtype=hessian.dtype)], axis=1)
     return jnp.concatenate([top, bottom], axis=0)
 
 
@@ -131,10 +131,15 @@ def _newton(energy, constraints, solver: NewtonKKT, args, z0, lam0):
 
         # Curvature test with growing regularisation (inertia-free).
         h_scale = jnp.maximum(jnp.max(jnp.abs(jnp.diag(hessian))), 1e-300)
-        rhs = jnp.concatenate([-grad_e, -c])
+        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
 
         def solve_with(mu):
-            sol = jnp.linalg.solve(_kkt_matrix(hessian, jacobian, mu), rhs)
+            # Redundant constraints (e.g. an inextensible straight tube between two pins)
+            # make J rank deficient: regularised tries add a proximal term on the
+            # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
+            delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
+            rhs = jnp.concatenate([-grad_e, -c - delta * lam])
+            sol = jnp.linalg.solve(_kkt_matrix(hessian, jacobian, mu, delta), rhs)
             dz = sol[:n]
             curvature = dz @ (hessian @ dz) + mu * (dz @ dz)
             ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))

@@ -1,0 +1,125 @@
+"""Solver behaviour: equilibrium of reactions, displacement control through collapse,
+vmap with per-member convergence, non-convergence reported (never NaN), float64 guard."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxtube as jt
+from jaxtube._mechanics import configuration, reference_geometry, segment_loads
+
+from .helpers import with_tip_force
+
+
+def test_reactions_balance_applied_loads():
+    """An arch clamped at both ends with a strut, self-weight, line and point loads: support
+    reactions (multipliers) balance every applied force and moment."""
+    arch = jt.arc_tube("arch", (0, 0, 0), 1.0, 0.0, np.pi, 12, 0.05, 2e4, jt.LinearLaw(50.0),
+                       torsion_law=jt.LinearLaw(40.0), normal=(0, -1, 0), mass_per_length=0.5)
+    strut = jt.straight_tube("strut", (0, 0, 1.0), (0, 0.5, 1.0), 4, 0.03, 2e4,
+                             jt.LinearLaw(20.0), torsion_law=jt.LinearLaw(15.0),
+                             line_load=(0, 0, -3.0))
+    structure, params = jt.build_structure(
+        [arch, strut], [jt.Support("arch:0", "clamped"), jt.Support("arch:end", "clamped")],
+        [jt.Connection("arch:6", "strut:0")],
+        node_force={"arch:3": [1.0, 2.0, -30.0], "strut:end": [0, 0, -5.0]},
+    )
+    sol = jax.jit(lambda p: jt.equilibrium(structure, p))(params)
+    assert bool(sol.converged)
+    geometry = reference_geometry(structure, params)
+    config = configuration(structure, geometry, sol.state)
+    distributed = segment_loads(structure, geometry, params)
+    midpoint = 0.5 * (config.segment_start + config.segment_end)
+    supports = np.array([n for n, _ in structure.supports])
+    applied = params.node_force.sum(0) + distributed.sum(0)
+    assert float(jnp.linalg.norm(applied)) > 10.0
+    np.testing.assert_allclose(sol.reaction_force.sum(0), -applied, atol=1e-9)
+    moment = (jnp.cross(sol.node_position, params.node_force).sum(0)
+              + jnp.cross(midpoint, distributed).sum(0)
+              + jnp.cross(sol.node_position[supports], sol.reaction_force).sum(0)
+              + sol.reaction_moment.sum(0))
+    np.testing.assert_allclose(moment, 0.0, atol=1e-8)
+
+
+@pytest.fixture(scope="module")
+def tension_field_cantilever():
+    law = jt.TensionFieldLaw(150e3, residual_stiffness_ratio=0.01)
+    return jt.cantilever(1.0, 0.075, 2e4, 10, law, jt.LinearLaw(150.0))
+
+
+def test_displacement_control_traces_collapse_plateau(tension_field_cantilever):
+    structure, params = tension_field_cantilever
+    tip = structure.node_id("tube:end")
+    path = jt.DisplacementControl(tip, [0, 0, -1], jnp.linspace(0.01, 0.4, 40))
+    sol = jax.jit(lambda p: jt.solve_path(structure, p, path))(params)
+    jt.check_converged(sol)
+    force = np.asarray(sol.control_force)
+    collapse = np.pi * 2e4 * 0.075**3  # M_c [N m] at the root of a 1 m cantilever
+    displacement = np.asarray(path.displacements)
+    assert np.all(np.diff(force) > 0)  # residual stiffness keeps it rising
+    initial_stiffness = force[0] / displacement[0]
+    final_stiffness = (force[-1] - force[-2]) / (displacement[-1] - displacement[-2])
+    assert final_stiffness < 0.1 * initial_stiffness  # softened tenfold: the plateau
+    assert force[-1] > 0.9 * collapse  # M_c / L, lifted a little by the residual stiffness
+    assert int(np.max(sol.joint_regime[-1])) == 2  # the root collapsed
+    # the root joint is the first to leave the linear regime
+    first = [int(np.argmax(r > 0)) if np.any(r > 0) else 99 for r in np.asarray(
+        sol.joint_regime).T]
+    assert first[0] == min(first)
+
+
+def test_vmap_reports_each_member_and_failure_is_not_hidden(tension_field_cantilever):
+    """Under vmap each member reports its own convergence. A member given too few Newton
+    steps for its (large, collapsing) load in one jump must say so (result code 1), with
+    finite numbers, while the others converge."""
+    structure, params = tension_field_cantilever
+    collapse = np.pi * 2e4 * 0.075**3
+
+    def solve(load):
+        return jt.equilibrium(structure, with_tip_force(structure, params, [0, 0, -load]),
+                              solver=jt.NewtonKKT(max_steps=6))
+
+    loads = jnp.array([0.05, 0.2, 1.5]) * collapse
+    sol = jax.jit(jax.vmap(solve))(loads)
+    converged = np.asarray(sol.converged)
+    assert converged.tolist() == [True, True, False]
+    assert int(sol.result[2]) == 1  # "did not converge within the maximum number of steps"
+    assert np.all(np.isfinite(np.asarray(sol.node_position)))
+    assert int(sol.iterations[0]) < int(sol.iterations[2])
+    with pytest.raises(RuntimeError, match="1 of 3 steps did not converge"):
+        jt.check_converged(sol)
+
+
+def test_float32_is_refused():
+    structure, params = jt.cantilever(1.0, 0.075, 2e4, 3, jt.LinearLaw(1.0))
+    state = jax.tree.map(lambda x: x.astype(jnp.float32), jt.initial_state(structure, params))
+    with pytest.raises(TypeError, match="float64"):
+        jt.solve_equilibrium(lambda s, a: jnp.sum(s["joint_rotation"] ** 2),
+                             lambda s, a: jnp.zeros((0,), jnp.float32), state, None)
+
+
+def test_pinned_supports_and_tapered_tube():
+    """A double-tapered hanging arc pinned at both ends, loaded at its middle: symmetric
+    deflection; vertical reactions share the load, horizontal reactions are opposite.
+    (A straight inextensible tube between two pins would lock: it cannot sag without
+    stretching, and the solver correctly drives it straight with a growing tension.)"""
+    taper = [(0.0, 0.05), (0.5, 0.08), (1.0, 0.05)]
+    tube = jt.arc_tube("t", (1.0, 0, 0.0), 1.0, np.pi, 2 * np.pi, 12, taper, 2e4,
+                       jt.TensionFieldLaw(150e3), torsion_law=jt.LinearLaw(60.0),
+                       normal=(0, -1, 0))
+    structure, params = jt.build_structure(
+        [tube], [jt.Support("t:0", "pinned"), jt.Support("t:end", "pinned")],
+        node_force={"t:6": [0, 0, -10.0]},
+    )
+    np.testing.assert_allclose(params.node_position[6], [1.0, 0.0, -1.0], atol=1e-12)
+    sol = jax.jit(lambda p: jt.equilibrium(structure, p))(params)
+    assert bool(sol.converged)
+    x, z = np.asarray(sol.node_position[:, 0]), np.asarray(sol.node_position[:, 2])
+    np.testing.assert_allclose(z, z[::-1], atol=1e-10)
+    np.testing.assert_allclose(x, 2.0 - x[::-1], atol=1e-10)
+    assert z[6] < -1.0
+    np.testing.assert_allclose(sol.reaction_force[:, 2], [5.0, 5.0], atol=1e-8)
+    np.testing.assert_allclose(sol.reaction_force[0, 0], -sol.reaction_force[1, 0], atol=1e-8)
+    np.testing.assert_allclose(sol.reaction_moment, 0.0, atol=1e-12)  # pins carry no moment
