@@ -57,15 +57,21 @@ def take_rows(values: Array, index) -> Array:
     """``values[index]`` for a static integer ``index`` along axis 0, without a gather.
 
     Reverse-mode differentiation turns a gather into a scatter-add, which XLA runs very
-    slowly on CPU (and it sits inside every Hessian). A contiguous index becomes a slice;
+    slowly on CPU (and it sits inside every Hessian). An index made of a few runs of
+    consecutive rows (a chain's pointer-jumping shifts, a tube's joints) becomes slices;
     any other index a product with a constant one-hot matrix, whose transpose is another
     small dense product.
     """
     index = np.asarray(index, dtype=np.int64).reshape(-1)
-    count = values.shape[0]
-    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-        return values[int(index[0]) : int(index[0]) + index.size]
-    one_hot = np.zeros((index.size, count), dtype=np.float64)
+    if index.size == 0:
+        return values[:0]
+    breaks = np.flatnonzero(np.diff(index) != 1) + 1
+    starts = np.concatenate([[0], breaks])
+    stops = np.concatenate([breaks, [index.size]])
+    if len(starts) <= 8:
+        pieces = [values[int(index[a]) : int(index[a]) + int(b - a)] for a, b in zip(starts, stops)]
+        return pieces[0] if len(pieces) == 1 else jnp.concatenate(pieces, axis=0)
+    one_hot = np.zeros((index.size, values.shape[0]), dtype=np.float64)
     one_hot[np.arange(index.size), index] = 1.0
     return jnp.tensordot(jnp.asarray(one_hot, dtype=values.dtype), values, axes=1)
 
@@ -333,7 +339,8 @@ def load_potential(
     potential = potential - jnp.sum(segment_loads(structure, geometry, params) * midpoint)
     if structure.torque_nodes:
         seg = np.array([structure.node_segment[n] for n in structure.torque_nodes], np.int32)
-        increment = matmul3(take_rows(config.frame, seg), transpose3(take_rows(geometry.frame, seg)))
+        reference = transpose3(take_rows(geometry.frame, seg))
+        increment = matmul3(take_rows(config.frame, seg), reference)
         potential = potential - jnp.sum(params.node_torque * rotation_vector(increment))
     return potential
 

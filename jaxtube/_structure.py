@@ -288,8 +288,9 @@ def build_structure(
     (N, N m) or as full ``[N, 3]`` arrays. Every node named in ``node_torque`` (or with a
     non-zero row) can carry a torque; give a zero torque to declare one for later.
 
-    Raises ``ValueError`` with a clear message for a duplicate tube name, an unknown node, non-coincident connected nodes, an unknown kind, a
-    missing support or a structure that is not connected.
+    Raises ``ValueError`` with a clear message for a duplicate tube name, an unknown node,
+    non-coincident connected nodes, an unknown kind, a missing support or a structure that
+    is not connected.
     """
     tubes = list(tubes)
     names = tuple(t.name for t in tubes)

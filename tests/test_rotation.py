@@ -31,6 +31,7 @@ def test_exp_log_round_trip(scale):
 def test_exp_map_derivatives_at_zero():
     weights = jnp.arange(9.0).reshape(3, 3) - 4.0
 
+    @jax.jit
     def scalar(theta):
         return jnp.sum(weights * jt.rotation_matrix(theta))
 
@@ -53,7 +54,7 @@ def test_exp_map_derivatives_at_zero():
 
 
 def test_log_map_derivatives_at_identity():
-    jac = jax.jacfwd(lambda t: jt.rotation_vector(jt.rotation_matrix(t)))(jnp.zeros(3))
+    jac = jax.jit(jax.jacfwd(lambda t: jt.rotation_vector(jt.rotation_matrix(t))))(jnp.zeros(3))
     np.testing.assert_allclose(jac, np.eye(3), atol=1e-14)
     hess = jax.hessian(lambda t: jnp.sum(jt.rotation_vector(jt.rotation_matrix(t)) ** 2))(
         jnp.zeros(3)

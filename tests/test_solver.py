@@ -1,7 +1,6 @@
 """Solver behaviour: equilibrium of reactions, displacement control through collapse,
 vmap with per-member convergence, non-convergence reported (never NaN), float64 guard."""
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
