@@ -521,6 +521,21 @@ def main(argv=None) -> int:
         (_, (e, c)), gradient = jax.value_and_grad(lagrangian, has_aux=True)(z)
         return gradient, e, c
 
+    def lagrangian(z, lam, p, g):
+        return energy(z, p, g) + jnp.dot(lam, constraints(z, p, g))
+
+    def lagrangian_shared(z, lam, p, g):
+        # The same Lagrangian with one forward kinematics shared by energy and constraints.
+        state = unravel(z)
+        config = jt.configuration(structure, g, state)
+        joints = _mechanics.spring_joints(structure, g, config, state)
+        e = (_mechanics.strain_energy(joints, p)
+             + _mechanics.load_potential(structure, g, config, p))
+        moved = config.node_position[tip] - p.node_position[tip]
+        c = jnp.concatenate([state["root_position"] - p.node_position[root],
+                             (jnp.dot(moved, control.direction) - 0.2)[None]])
+        return e + jnp.dot(lam, c)
+
     def solver_linearisation(z, lam, p, g):
         # What NewtonKKT does: one linearisation of (gradient, energy, constraints), pushed
         # through the identity, gives the Lagrangian Hessian and the constraint Jacobian.
@@ -546,6 +561,9 @@ def main(argv=None) -> int:
         "trial": "Lagrangian gradient + E + c (line-search trial point)",
         "hessian": "Hessian jax.hessian(E) [63 x 63]",
         "linearisation": "solver linearisation: Hessian + Jacobian (linearize+vmap)",
+        "lagrangian": "jax.hessian(E + lam.c), kinematics in E and in c",
+        "shared": "jax.hessian(E + lam.c), kinematics shared",
+        "jacobian": "constraint Jacobian jax.jacfwd(c) [4 x 63]",
         "solve": "KKT assemble + jnp.linalg.solve [67 x 67]",
         "iteration": "whole Newton iteration: equilibrium(max_steps=1)",
         "matmul gradient": "what-if, 3x3 products as jnp.matmul: jax.grad(E)",
@@ -567,6 +585,12 @@ def main(argv=None) -> int:
     hessian_reference = profile_piece("hessian", jax.hessian(energy), point)
     hessian_value, jacobian_t = profile_piece("linearisation", solver_linearisation,
                                               lagrange_point)
+    profile_piece("lagrangian", jax.hessian(lagrangian), lagrange_point)
+    try:
+        profile_piece("shared", jax.hessian(lagrangian_shared), lagrange_point)
+    except AttributeError as error:  # private helpers renamed
+        report(f"    shared-kinematics Hessian skipped: {error}")
+    profile_piece("jacobian", jax.jacfwd(constraints), point)
     profile_piece("solve", kkt_solve, (hessian_value, jacobian_t.T, jnp.ones(z_size + 4)))
     profile_piece("iteration", one_newton_step, (params,))
 
@@ -652,9 +676,17 @@ def main(argv=None) -> int:
            "through the whole chain, as [63, 20, 3, 3(, 3)] broadcast-multiply-reduce fusions "
            "that XLA:CPU runs far from peak. The dense Hessian has 63^2 entries, but the work "
            "is 63 x (the whole chain), however cheap each entry is analytically.")
+    if "shared" in profile:
+        report(f"3. The constraints redo the forward kinematics: the Lagrangian Hessian takes "
+               f"{median('lagrangian') * 1e3:.1f} ms as the solver builds it (configuration() "
+               f"in the energy and again in the constraints; the Jacobian of c alone "
+               f"{median('jacobian') * 1e3:.1f} ms) but {median('shared') * 1e3:.1f} ms with "
+               f"one shared configuration ({median('lagrangian') / median('shared'):.1f}x), vs "
+               f"{hessian * 1e3:.1f} ms for the energy alone. A solver API where energy and "
+               "constraints share one kinematics evaluation would bank that.")
     if "matmul hessian" in profile:
         gain = hessian / median("matmul hessian")
-        report(f"3. The 3x3 products matter: with jnp.matmul in place of matmul3/matvec3 the "
+        report(f"4. The 3x3 products matter: with jnp.matmul in place of matmul3/matvec3 the "
                f"Hessian takes {median('matmul hessian') * 1e3:.1f} ms instead of "
                f"{hessian * 1e3:.1f} ms ({gain:.1f}x), the gradient "
                f"{median('matmul gradient') * 1e3:.2f} ms instead of {gradient * 1e3:.2f} ms. "
@@ -662,23 +694,23 @@ def main(argv=None) -> int:
                   "hold for this model's derivatives: cheap to try in _rotation.py."
                   if gain > 1.3 else "No clear gain: matmul3 is not the bottleneck."))
     else:
-        report("3. (what-if on the 3x3 products skipped, see the profile)")
-    report(f"4. Each load step linearises once more than it steps: the converged test comes "
+        report("4. (what-if on the 3x3 products skipped, see the profile)")
+    report(f"5. Each load step linearises once more than it steps: the converged test comes "
            f"after the Hessian (and the whole body, KKT solve and trial gradient included, runs "
            f"before the stop flag discards it), so {STEPS} of the {path_hessians} "
            f"linearisations in (b) ({STEPS / path_hessians:.0%}) only confirm convergence. "
            "Testing the gradient/constraint residual first would save them.")
-    report(f"5. Newton's step count is already low ({int(newton_steps.sum())} steps for 50 load "
-           f"steps, {newton_steps.mean():.1f} per step, no line-search trouble); meeting (b) "
+    report(f"6. Newton's step count is already low ({int(newton_steps.sum())} steps for 50 load "
+           f"steps, {newton_steps.mean():.1f} per step); meeting (b) "
            f"needs a linearisation of about {TARGET_PATH / path_hessians * 1e3:.2f} ms, "
            f"{per_linearisation_b / (TARGET_PATH / path_hessians):.0f}x cheaper than now. That "
            "calls for using the chain structure (recursive/analytic Hessian of the tree "
            "kinematics, or a formulation with a sparse/banded Hessian), not for tuning.")
-    report(f"6. vmap does not amortise: {timing_c.median / batch:.2f} s per curve batched vs "
+    report(f"7. vmap does not amortise: {timing_c.median / batch:.2f} s per curve batched vs "
            f"{timing_b.median:.2f} s unbatched (cost is arithmetic, already 63 tangents wide); "
            f"lockstep while loops then add {lockstep / mean_member - 1:.0%} extra Newton steps "
            "over the average member.")
-    report(f"7. Compile time: (a) {compile_a:.0f} s, (b) {compile_b:.0f} s, (c) {compile_c:.0f} "
+    report(f"8. Compile time: (a) {compile_a:.0f} s, (b) {compile_b:.0f} s, (c) {compile_c:.0f} "
            f"s, {xla_share:.0%} of it in XLA (the rest tracing/lowering). The Hessian alone "
            f"compiles in {compile_total('hessian'):.0f} s, the solver's linearisation in "
            f"{compile_total('linearisation'):.0f} s, the gradient in "
@@ -686,7 +718,7 @@ def main(argv=None) -> int:
            "trial-point gradient, the line-search merit and the post-processing, and every "
            "new structure or solver setting (static fields) recompiles all of it.")
     scaled_note = " (scaled from 10 steps)" if scipy_steps < STEPS else ""
-    report(f"8. scipy SLSQP with finite differences in numpy needs {scipy_timing.median:.0f} s "
+    report(f"9. scipy SLSQP with finite differences in numpy needs {scipy_timing.median:.0f} s "
            f"for the curve{scaled_note} ({int(scipy_iterations.sum())} SLSQP iterations, each "
            f"about 60 energy and 60 constraint evaluations); jaxtube (b) is {speedup:.1f}x faster "
            f"({'meets' if speedup >= TARGET_SPEEDUP else 'short of'} the 50x target), and "

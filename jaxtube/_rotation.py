@@ -68,9 +68,11 @@ def rotation_matrix(rotation_vector: Array) -> Array:
     """Exponential map ``so(3) -> SO(3)``; ``[..., 3] -> [..., 3, 3]`` (Rodrigues' formula)."""
     angle_sq = jnp.sum(rotation_vector * rotation_vector, axis=-1)
     a, b = _rodrigues_coefficients(angle_sq)
-    k = skew(rotation_vector)
+    # [t]x^2 = t t^T - |t|^2 I: no matrix product needed.
+    outer = rotation_vector[..., :, None] * rotation_vector[..., None, :]
     eye = jnp.eye(3, dtype=rotation_vector.dtype)
-    return eye + a[..., None, None] * k + b[..., None, None] * matmul3(k, k)
+    return ((1.0 - b * angle_sq)[..., None, None] * eye + a[..., None, None] *
+            skew(rotation_vector) + b[..., None, None] * outer)
 
 
 def rotation_vector(rotation: Array) -> Array:
