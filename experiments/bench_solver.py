@@ -320,7 +320,7 @@ def main(argv=None) -> int:
     repeats_batch = 1 if quick else 2
     repeats_path = 2 if quick else 4
     repeats_scipy = 1  # about 4 min per curve on this machine
-    repeats_piece = 5 if quick else 20
+    repeats_piece = 5 if quick else 25
     batch = args.batch if args.batch is not None else (2 if quick else 8)
     grid_size = GRID_PRESSURE[2] * GRID_RADIUS[2]
 
@@ -420,6 +420,17 @@ def main(argv=None) -> int:
     report(f"    energy check at a random state: jaxtube {energy_jt:.12g} J, numpy "
            f"{energy_np:.12g} J; tip position differs by "
            f"{np.max(np.abs(tip_jt - model.tip_position(theta.ravel()))):.1e} m")
+    evaluations = 200
+    wall0 = time.perf_counter()
+    for _ in range(evaluations):
+        model.energy(theta.ravel())
+    numpy_energy = (time.perf_counter() - wall0) / evaluations
+    wall0 = time.perf_counter()
+    for _ in range(evaluations):
+        model.tip_position(theta.ravel())
+    numpy_tip = (time.perf_counter() - wall0) / evaluations
+    report(f"    numpy cost per evaluation: energy {numpy_energy * 1e6:.0f} us, tip position "
+           f"(constraint) {numpy_tip * 1e6:.0f} us")
     walls, cpus = [], []
     for _ in range(repeats_scipy):
         cpu0, wall0 = time.process_time(), time.perf_counter()
@@ -569,51 +580,68 @@ def main(argv=None) -> int:
         "matmul gradient": "what-if, 3x3 products as jnp.matmul: jax.grad(E)",
         "matmul hessian": "what-if, 3x3 products as jnp.matmul: jax.hessian(E)",
     }
-    profile = {}
+    # Compile every piece first, then time them in interleaved rounds (one call of each
+    # piece per round), so that a change of machine load hits all pieces alike.
+    compiled_pieces = {}
 
-    def profile_piece(key, fn, fn_args):
+    def add_piece(key, fn, fn_args):
         compiled, lower_t, compile_t, _ = compile_timed(fn, *fn_args)
-        timing, out = time_warm(compiled, *fn_args, repeats=repeats_piece)
-        profile[key] = (timing, lower_t, compile_t)
-        report(f"    {names[key]:58s} {timing.median * 1e3:8.3f} ms (min "
-               f"{timing.best * 1e3:7.3f})  compile {lower_t:4.1f} + {compile_t:4.1f} s")
+        out = jax.block_until_ready(compiled(*fn_args))
+        compiled_pieces[key] = (compiled, fn_args, lower_t, compile_t)
         return out
 
-    profile_piece("energy", energy, point)
-    profile_piece("gradient", jax.grad(energy), point)
-    profile_piece("trial", gradient_parts, lagrange_point)
-    hessian_reference = profile_piece("hessian", jax.hessian(energy), point)
-    hessian_value, jacobian_t = profile_piece("linearisation", solver_linearisation,
-                                              lagrange_point)
-    profile_piece("lagrangian", jax.hessian(lagrangian), lagrange_point)
+    add_piece("energy", energy, point)
+    add_piece("gradient", jax.grad(energy), point)
+    add_piece("trial", gradient_parts, lagrange_point)
+    hessian_reference = add_piece("hessian", jax.hessian(energy), point)
+    hessian_value, jacobian_t = add_piece("linearisation", solver_linearisation, lagrange_point)
+    add_piece("lagrangian", jax.hessian(lagrangian), lagrange_point)
     try:
-        profile_piece("shared", jax.hessian(lagrangian_shared), lagrange_point)
+        add_piece("shared", jax.hessian(lagrangian_shared), lagrange_point)
     except AttributeError as error:  # private helpers renamed
         report(f"    shared-kinematics Hessian skipped: {error}")
-    profile_piece("jacobian", jax.jacfwd(constraints), point)
-    profile_piece("solve", kkt_solve, (hessian_value, jacobian_t.T, jnp.ones(z_size + 4)))
-    profile_piece("iteration", one_newton_step, (params,))
+    add_piece("jacobian", jax.jacfwd(constraints), point)
+    add_piece("solve", kkt_solve, (hessian_value, jacobian_t.T, jnp.ones(z_size + 4)))
+    add_piece("iteration", one_newton_step, (params,))
 
     # What-if: the same energy with the 3x3 products as jnp.matmul instead of the
-    # broadcast-multiply-reduce of jaxtube._rotation.matmul3 / matvec3 (restored after).
+    # broadcast-multiply-reduce of jaxtube._rotation.matmul3 / matvec3. Patched only while
+    # tracing and compiling; the originals are restored right after.
     patched = [(m, n) for m in (_mechanics, _rotation) for n in ("matmul3", "matvec3")
                if hasattr(m, n)]
+    matmul_note = "    what-if skipped: jaxtube no longer has matmul3/matvec3 where expected"
     if len(patched) == 4:
         saved = {(m, n): getattr(m, n) for m, n in patched}
         try:
             for module in (_mechanics, _rotation):
                 module.matmul3 = jnp.matmul
                 module.matvec3 = lambda a, v: jnp.matmul(a, v[..., None])[..., 0]
-            profile_piece("matmul gradient", jax.grad(energy), point)
-            hessian_matmul = profile_piece("matmul hessian", jax.hessian(energy), point)
+            add_piece("matmul gradient", jax.grad(energy), point)
+            hessian_matmul = add_piece("matmul hessian", jax.hessian(energy), point)
         finally:
             for (module, name), value in saved.items():
                 setattr(module, name, value)
         matmul_error = float(jnp.max(jnp.abs(hessian_matmul - hessian_reference))
                              / jnp.max(jnp.abs(hessian_reference)))
-        report(f"    (the what-if Hessian equals jaxtube's to {matmul_error:.0e} relative)")
-    else:
-        report("    what-if skipped: jaxtube no longer has matmul3/matvec3 where expected")
+        matmul_note = f"    (the what-if Hessian equals jaxtube's to {matmul_error:.0e} relative)"
+
+    walls = {key: [] for key in compiled_pieces}
+    cpus = {key: [] for key in compiled_pieces}
+    for _ in range(repeats_piece):
+        for key, (compiled, fn_args, _, _) in compiled_pieces.items():
+            cpu0, wall0 = time.process_time(), time.perf_counter()
+            jax.block_until_ready(compiled(*fn_args))
+            walls[key].append(time.perf_counter() - wall0)
+            cpus[key].append(time.process_time() - cpu0)
+    profile = {}
+    for key, (_, _, lower_t, compile_t) in compiled_pieces.items():
+        timing = Timing(walls[key], cpus[key], os.getloadavg()[0])
+        profile[key] = (timing, lower_t, compile_t)
+        report(f"    {names[key]:58s} {timing.median * 1e3:8.3f} ms (min "
+               f"{timing.best * 1e3:7.3f})  compile {lower_t:4.1f} + {compile_t:4.1f} s")
+    report(matmul_note)
+    report(f"    ({repeats_piece} interleaved rounds; CPU share over all pieces "
+           f"{sum(map(sum, cpus.values())) / sum(map(sum, walls.values())):.2f})")
     report(f"    end: {load_text()}")
     report()
 
@@ -670,20 +698,23 @@ def main(argv=None) -> int:
            f"KKT solve takes {solve * 1e3:.2f} ms ({solve / iteration:.1%}), a gradient "
            f"{gradient * 1e3:.2f} ms, the energy {median('energy') * 1e3:.2f} ms. In (b) the "
            f"time per linearisation is {per_linearisation_b * 1e3:.0f} ms all-in.")
-    report(f"2. jax.hessian costs {hessian / gradient:.0f}x one gradient for 63 unknowns "
-           f"(63 separate gradients: {63 * gradient * 1e3:.0f} ms, so batching the tangents "
-           f"saves only {63 * gradient / hessian:.1f}x): forward-over-reverse pushes 63 tangents "
-           "through the whole chain, as [63, 20, 3, 3(, 3)] broadcast-multiply-reduce fusions "
-           "that XLA:CPU runs far from peak. The dense Hessian has 63^2 entries, but the work "
-           "is 63 x (the whole chain), however cheap each entry is analytically.")
+    report(f"2. jax.hessian(E) costs {hessian / gradient:.0f}x one gradient for 63 unknowns "
+           f"(63 separate gradients: {63 * gradient * 1e3:.0f} ms, so vmapping the tangents "
+           f"saves {63 * gradient / hessian:.0f}x). The Hessian is dense (every rotation moves "
+           "every node downstream) and forward-over-reverse pushes all 63 tangents through the "
+           f"whole chain. (The energy alone takes {median('energy') * 1e3:.2f} ms warm vs "
+           f"{numpy_energy * 1e3:.2f} ms for the baseline's numpy energy: per-op overhead; but "
+           "the Hessian's cost grows with the work, see 7.)")
     if "shared" in profile:
         report(f"3. The constraints redo the forward kinematics: the Lagrangian Hessian takes "
                f"{median('lagrangian') * 1e3:.1f} ms as the solver builds it (configuration() "
                f"in the energy and again in the constraints; the Jacobian of c alone "
                f"{median('jacobian') * 1e3:.1f} ms) but {median('shared') * 1e3:.1f} ms with "
                f"one shared configuration ({median('lagrangian') / median('shared'):.1f}x), vs "
-               f"{hessian * 1e3:.1f} ms for the energy alone. A solver API where energy and "
-               "constraints share one kinematics evaluation would bank that.")
+               f"{hessian * 1e3:.1f} ms for the energy alone. "
+               + ("A solver API where energy and constraints share one kinematics evaluation "
+                  "would bank that." if median("lagrangian") > 1.2 * median("shared") else
+                  "No clear gain in this run."))
     if "matmul hessian" in profile:
         gain = hessian / median("matmul hessian")
         report(f"4. The 3x3 products matter: with jnp.matmul in place of matmul3/matvec3 the "
@@ -692,7 +723,8 @@ def main(argv=None) -> int:
                f"{median('matmul gradient') * 1e3:.2f} ms instead of {gradient * 1e3:.2f} ms. "
                + ("The matmul3 docstring's premise (batched dot_general slow on CPU) does not "
                   "hold for this model's derivatives: cheap to try in _rotation.py."
-                  if gain > 1.3 else "No clear gain: matmul3 is not the bottleneck."))
+                  if gain > 1.3 else "No clear gain: matmul3 is not the bottleneck in this "
+                  "version of jaxtube."))
     else:
         report("4. (what-if on the 3x3 products skipped, see the profile)")
     report(f"5. Each load step linearises once more than it steps: the converged test comes "
@@ -706,9 +738,13 @@ def main(argv=None) -> int:
            f"{per_linearisation_b / (TARGET_PATH / path_hessians):.0f}x cheaper than now. That "
            "calls for using the chain structure (recursive/analytic Hessian of the tree "
            "kinematics, or a formulation with a sparse/banded Hessian), not for tuning.")
-    report(f"7. vmap does not amortise: {timing_c.median / batch:.2f} s per curve batched vs "
-           f"{timing_b.median:.2f} s unbatched (cost is arithmetic, already 63 tangents wide); "
-           f"lockstep while loops then add {lockstep / mean_member - 1:.0%} extra Newton steps "
+    per_curve = timing_c.median / batch
+    report(f"7. vmap {'does not amortise' if per_curve > 0.7 * timing_b.median else 'amortises'}"
+           f": {per_curve:.2f} s per curve batched vs {timing_b.median:.2f} s unbatched"
+           + (": the Hessian's 63-wide tangent arithmetic, not per-call overhead, is what "
+              "costs, so batching cannot hide it; " if per_curve > 0.7 * timing_b.median
+              else "; ")
+           + f"lockstep while loops then add {lockstep / mean_member - 1:.0%} extra Newton steps "
            "over the average member.")
     report(f"8. Compile time: (a) {compile_a:.0f} s, (b) {compile_b:.0f} s, (c) {compile_c:.0f} "
            f"s, {xla_share:.0%} of it in XLA (the rest tracing/lowering). The Hessian alone "
