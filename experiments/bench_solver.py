@@ -717,7 +717,7 @@ def main(argv=None) -> int:
                   "No clear gain in this run."))
     if "matmul hessian" in profile:
         gain = hessian / median("matmul hessian")
-        report(f"4. The 3x3 products matter: with jnp.matmul in place of matmul3/matvec3 the "
+        report(f"4. 3x3 products: with jnp.matmul in place of matmul3/matvec3 the "
                f"Hessian takes {median('matmul hessian') * 1e3:.1f} ms instead of "
                f"{hessian * 1e3:.1f} ms ({gain:.1f}x), the gradient "
                f"{median('matmul gradient') * 1e3:.2f} ms instead of {gradient * 1e3:.2f} ms. "
