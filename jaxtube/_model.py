@@ -113,18 +113,24 @@ def scale_loads(params: StructureParameters, factor) -> StructureParameters:
 def total_energy(structure: Structure, params, geometry: ReferenceGeometry, state) -> Array:
     """Total potential energy: joint strain energy plus the potential of the dead loads [J]."""
     config = configuration(structure, geometry, state)
+    return _energy_of(structure, params, geometry, config, state)
+
+
+def _energy_of(structure, params, geometry, config, state) -> Array:
     joints = spring_joints(structure, geometry, config, state)
     return strain_energy(joints, params) + load_potential(structure, geometry, config, params)
 
 
-def _constraints(structure, geometry, state, params, control):
+def _objective(structure, geometry, state, params, control):
+    """Energy [J] and constraints [m] from one evaluation of the kinematics."""
     config = configuration(structure, geometry, state)
+    energy = _energy_of(structure, params, geometry, config, state)
     c = support_constraints(structure, config, state, params)
     if control is not None:
         node, direction, value = control
         moved = config.node_position[node] - params.node_position[node]
         c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
-    return c
+    return energy, c
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
@@ -199,18 +205,12 @@ def equilibrium(
 
 
 def _solve(structure, params, geometry, ctrl, state0, lam0, solver, factor) -> Solution:
-    def energy(state, args):
-        p, g, _ = args
-        return total_energy(structure, p, g, state)
-
-    def constraints(state, args):
+    def objective(state, args):
         p, g, c = args
-        return _constraints(structure, g, state, p, None if c is None else (ctrl[0], c[0], c[1]))
+        return _objective(structure, g, state, p, None if c is None else (ctrl[0], c[0], c[1]))
 
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
-    eq = solve_equilibrium(
-        energy, constraints, state0, (params, geometry, c_args), solver, lam0
-    )
+    eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0)
     return _post_process(structure, params, geometry, eq, ctrl, factor)
 
 

@@ -1,7 +1,8 @@
 """Equality-constrained energy minimisation with Newton's method, and its implicit gradient.
 
 Problem: ``min_y E(y, args)`` subject to ``c(y, args) = 0``, where ``y`` is any PyTree (the
-structure's state) and ``args`` any PyTree of parameters. Stationarity of the Lagrangian
+structure's state) and ``args`` any PyTree of parameters; one objective function returns
+``(E, c)`` so that their shared work (the kinematics) is done once. Stationarity of the Lagrangian
 ``L = E + lambda . c`` gives the KKT system, solved by Newton's method with the exact
 Hessian (forward-over-reverse automatic differentiation):
 
@@ -93,13 +94,12 @@ def _kkt_matrix(hessian, jacobian, mu, delta=0.0):
     return jnp.concatenate([top, bottom], axis=0)
 
 
-def _newton(energy, constraints, solver: NewtonKKT, args, z0, lam0):
+def _newton(objective, solver: NewtonKKT, args, z0, lam0):
     n = z0.shape[0]
     eye = jnp.eye(n, dtype=z0.dtype)
 
     def lagrangian_and_parts(z, lam):
-        e = energy(z, args)
-        c = constraints(z, args)
+        e, c = objective(z, args)
         return e + jnp.dot(lam, c), (e, c)
 
     def gradient_and_parts(z, lam):
@@ -210,27 +210,29 @@ def _newton(energy, constraints, solver: NewtonKKT, args, z0, lam0):
     return z, lam, (code == 0, steps, code, res_g, res_c), kkt
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
-def _equilibrium(energy, constraints, solver, args, z0, lam0):
-    z, lam, stats, _ = _newton(energy, constraints, solver, args, z0, lam0)
+@partial(jax.custom_jvp, nondiff_argnums=(0, 1))
+def _equilibrium(objective, solver, args, z0, lam0):
+    z, lam, stats, _ = _newton(objective, solver, args, z0, lam0)
     return z, lam, stats
 
 
-def _kkt_residual(energy, constraints, z, lam, args):
+def _kkt_residual(objective, z, lam, args):
     def lagrangian(zz):
-        return energy(zz, args) + jnp.dot(lam, constraints(zz, args))
+        e, c = objective(zz, args)
+        return e + jnp.dot(lam, c), c
 
-    return jnp.concatenate([jax.grad(lagrangian)(z), constraints(z, args)])
+    grad, c = jax.grad(lagrangian, has_aux=True)(z)
+    return jnp.concatenate([grad, c])
 
 
 @_equilibrium.defjvp
-def _equilibrium_jvp(energy, constraints, solver, primals, tangents):
+def _equilibrium_jvp(objective, solver, primals, tangents):
     args, z0, lam0 = primals
     args_dot = tangents[0]
-    z, lam, stats, kkt = _newton(energy, constraints, solver, args, z0, lam0)
+    z, lam, stats, kkt = _newton(objective, solver, args, z0, lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
-        lambda a: _kkt_residual(energy, constraints, z, lam, a), (args,), (args_dot,)
+        lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
     solution_dot = -jnp.linalg.solve(kkt, residual_dot)
     stats_dot = tuple(
@@ -242,18 +244,18 @@ def _equilibrium_jvp(energy, constraints, solver, primals, tangents):
 
 
 def solve_equilibrium(
-    energy,
-    constraints,
+    objective,
     initial_state,
     args,
     solver: NewtonKKT = NewtonKKT(),
     initial_multipliers: Array | None = None,
 ) -> Equilibrium:
-    """Minimise ``energy(state, args)`` subject to ``constraints(state, args) == 0``.
+    """Minimise an energy subject to equality constraints, both from one ``objective``.
 
     Args:
-        energy: ``(state, args) -> scalar`` total potential energy [J].
-        constraints: ``(state, args) -> [m]`` equality constraints (``m`` may be 0).
+        objective: ``(state, args) -> (energy, constraints)``: the total potential energy
+            [J] (scalar) and the equality constraints ``[m]`` (``m`` may be 0). One function
+            for both, so that shared work (the structure's kinematics) is done once.
         initial_state: PyTree initial guess (e.g. the previous load step).
         args: PyTree of parameters; derivatives of the result w.r.t. it come from the
             implicit function theorem.
@@ -270,16 +272,14 @@ def solve_equilibrium(
             "before creating arrays (importing jaxtube does this unless JAXTUBE_NO_X64=1)."
         )
 
-    def flat_energy(z, a):
-        return energy(unravel(z), a)
+    def flat_objective(z, a):
+        energy, constraints = objective(unravel(z), a)
+        return energy, jnp.reshape(constraints, (-1,))
 
-    def flat_constraints(z, a):
-        return jnp.reshape(constraints(unravel(z), a), (-1,))
-
-    m = jax.eval_shape(flat_constraints, z0, args).shape[0]
+    m = jax.eval_shape(flat_objective, z0, args)[1].shape[0]
     lam0 = jnp.zeros((m,), z0.dtype) if initial_multipliers is None else initial_multipliers
     z, lam, (converged, steps, code, res_g, res_c) = _equilibrium(
-        flat_energy, flat_constraints, solver, args, z0, lam0
+        flat_objective, solver, args, z0, lam0
     )
     return Equilibrium(
         state=unravel(z), multipliers=lam, converged=converged, iterations=steps, result=code,

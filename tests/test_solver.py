@@ -95,8 +95,10 @@ def test_float32_is_refused():
     structure, params = jt.cantilever(1.0, 0.075, 2e4, 3, jt.LinearLaw(1.0))
     state = jax.tree.map(lambda x: x.astype(jnp.float32), jt.initial_state(structure, params))
     with pytest.raises(TypeError, match="float64"):
-        jt.solve_equilibrium(lambda s, a: jnp.sum(s["joint_rotation"] ** 2),
-                             lambda s, a: jnp.zeros((0,), jnp.float32), state, None)
+        jt.solve_equilibrium(
+            lambda s, a: (jnp.sum(s["joint_rotation"] ** 2), jnp.zeros((0,), jnp.float32)),
+            state, None,
+        )
 
 
 def test_pinned_supports_and_tapered_tube():
