@@ -33,7 +33,7 @@ from ._mechanics import (
     support_constraints,
     world_joint_moments,
 )
-from ._solver import NewtonKKT, solve_equilibrium
+from ._solver import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
 from ._structure import GROUND, JOINT_GROUND, Structure, StructureParameters
 
 
@@ -253,8 +253,6 @@ def solve_path(
 
 def check_converged(solution: Solution, what: str = "solve") -> None:
     """Raise ``RuntimeError`` naming every step that did not converge (host-side helper)."""
-    from ._solver import RESULT_MESSAGES
-
     converged = np.atleast_1d(np.asarray(solution.converged))
     if converged.all():
         return
