@@ -1,7 +1,29 @@
-"""Calibration of jaxtube models against measured force-deflection curves."""
+"""Calibration of jaxtube models against measured force-deflection curves.
 
-from ._data import DataError as DataError
-from ._data import DataProblem as DataProblem
-from ._data import MeasuredCurve as MeasuredCurve
-from ._data import MeasuredData as MeasuredData
-from ._data import load_measurements as load_measurements
+One public namespace: measured data (:func:`load_measurements`), the bench models
+(:class:`CantileverRig`), the pivot scaling (:class:`PivotScaling`), the fit (:func:`fit`,
+:class:`FitOptions`, :class:`FitResult`) and the parameters file (:func:`load_law`).
+The independent continuum reference solver is :mod:`fitting.continuum`.
+"""
+
+from ._calibrate import (
+    Convergence,
+    FitError,
+    FitOptions,
+    Prior,
+    estimate_noise,
+    fit,
+    make_problem,
+)
+from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
+from ._result import FitResult, ParameterEstimate, load_law
+from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
+from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
+
+__all__ = [
+    "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
+    "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
+    "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
+    "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
+    "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
+]

@@ -49,7 +49,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from ._mechanics import configuration, initial_state, reference_geometry, spring_joints
+from ._mechanics import initial_state, reference_geometry, spring_joints
 from ._model import DisplacementControl, Solution, solve_path
 from ._solver import RESULT_MESSAGES
 from ._spec import LoadedSpec, SpecError, load_spec
@@ -204,9 +204,7 @@ def _joint_nodes(spec: LoadedSpec) -> tuple[int, ...]:
 
     def joints():
         geometry = reference_geometry(structure, params)
-        state = initial_state(structure, params)
-        config = configuration(structure, geometry, state)
-        return spring_joints(structure, geometry, config, state)
+        return spring_joints(structure, geometry, initial_state(structure, params))
 
     return jax.eval_shape(joints).node
 

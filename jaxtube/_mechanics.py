@@ -2,22 +2,28 @@
 
 State (a PyTree, so that new kinds of degrees of freedom can join later)::
 
-    {"root_position": [3] m, "joint_rotation": [S, 3] rad}
+    {"root_position": [3] m, "segment_rotation": [S, 3] rad}
 
-``joint_rotation[s]`` is the rotation vector of segment ``s`` relative to its orientation
-parent, in the joint frame (its third axis is the tube axis there), so its first two
-components are bending and the third is torsion (Breukels & Ockels 2008). The deformed
-frame of segment ``s`` is::
+``segment_rotation[s] = phi_s`` is the rotation of rigid segment ``s`` from its reference
+orientation, in its material frame: ``Q_s = Q_s0 exp(phi_s)``. The joint rotation of a
+spherical joint between segments ``a`` (parent) and ``b`` follows from the two, in the joint
+frame (its third axis is the tube axis there, so its first two components are bending and
+the third is torsion; Breukels & Ockels 2008)::
 
-    Q_s = Q_parent(s) H_pre,s exp(theta_s) H_post,s
+    exp(theta) = H_pre^T Q_a^T Q_b H_post^T = exp(-H_pre^T phi_a) exp(H_post phi_b)
 
-where ``H_pre H_post`` is the reference relative rotation. Between two segments of one tube
-``H_pre = H_post`` = half the reference bend (the joint frame bisects the two axes, so an
-arc's bending and torsion are split symmetrically); where a tube is attached to another,
-``H_pre`` is the whole reference rotation and the joint frame is the attached tube's.
+where ``H_pre H_post = Q_a0^T Q_b0`` is the reference relative rotation. Between two segments
+of one tube ``H_pre = H_post`` = half the reference bend (the joint frame bisects the two
+axes, so an arc's bending and torsion are split symmetrically); where a tube is attached to
+another, ``H_pre`` is the whole reference rotation and the joint frame is the attached tube's.
 
-Frames and positions are composed along the kinematic tree by one ``lax.scan`` over the
-segments in breadth-first order (parents first), for chains and trees alike.
+Why segment rotations rather than joint rotations as unknowns: node positions are then sums
+of independent per-segment terms ``Q_s0 exp(phi_s) e_s``, so every load and every support
+or control constraint is separable by segment, and each spring couples only its two
+segments. The Hessian of the Lagrangian is block-sparse along the joints and is assembled
+from small element Hessians (:func:`jaxtube._model` ``lagrangian_hessian``) instead of
+pushing every unknown through the whole chain. The model (its energy and its equilibria) is
+the same; only the coordinates differ.
 
 Energy (per unit length laws, PHYSICS.md section 1): joint ``j`` with rotation ``theta`` and
 tributary length ``l`` has curvature ``kappa = theta / l`` and energy
@@ -116,17 +122,28 @@ def _tangent_frame(tangent: Array) -> Array:
 class ReferenceGeometry(eqx.Module):
     """Reference quantities derived (differentiably) from the reference node positions.
 
-    Shapes: ``S`` segments, ``D`` derived joints.
+    Shapes: ``S`` segments, ``J`` spring joints (tree joints with a spring, then derived
+    joints), in the order of :class:`JointSet`.
     """
 
-    frame: Array  # [S, 3, 3] reference material frames (columns d1, d2, d3 = tube axis)
+    frame: Array  # [S, 3, 3] reference material frames Q_s0 (columns d1, d2, d3 = tube axis)
     length: Array  # [S] m
     end_vector: Array  # [S, 3] kinematic start -> end in the segment's material frame, m
-    pre: Array  # [S, 3, 3] H_pre
-    post: Array  # [S, 3, 3] H_post
-    tributary: Array  # [S] m
-    derived_reference: Array  # [D, 3, 3] reference relative rotation Q_a0^T Q_b0
-    derived_tributary: Array  # [D] m
+    joint_parent_map: Array  # [J, 3, 3] U_j: parent segment rotation -> joint frame (0: ground)
+    joint_child_map: Array  # [J, 3, 3] V_j: child segment rotation -> joint frame (H_post)
+    joint_tributary: Array  # [J] m
+
+
+def spring_joint_topology(structure: Structure):
+    """Static ``(parent segment or GROUND, child segment, node, law tube)`` per spring joint."""
+    tree = [s for s, spring in enumerate(structure.joint_spring) if spring]
+    parent = [structure.orientation_parent[s] for s in tree] + [a for a, _ in
+                                                                 structure.derived_frames]
+    child = tree + [b for _, b in structure.derived_frames]
+    node = [structure.joint_node[s] for s in tree] + list(structure.derived_node)
+    law = [structure.joint_law_tube[s] for s in tree] + list(structure.derived_law_tube)
+    return (np.array(parent, np.int32), np.array(child, np.int32), tuple(node), tuple(law),
+            np.array(tree, np.int32))
 
 
 def reference_geometry(structure: Structure, params: StructureParameters) -> ReferenceGeometry:
@@ -145,9 +162,11 @@ def reference_geometry(structure: Structure, params: StructureParameters) -> Ref
     local = jnp.where(is_root[:, None, None], _tangent_frame(tangent), transport)
     frame = compose_along_tree(local, parents, lambda anc, own: matmul3(own, anc), jnp.eye(3))
 
+    # Tree joints: the reference relative rotation Q_p0^T Q_s0 = H_pre H_post is split at the
+    # joint frame (bisector for a bend, the child's frame for an attachment).
     kind = np.array(structure.joint_kind)
     parent_frame = frame[parent_index]
-    relative = matmul3(transpose3(parent_frame), frame)  # Q_p0^T Q_s0
+    relative = matmul3(transpose3(parent_frame), frame)
     axis_in_parent = matvec3(transpose3(parent_frame), tangent)
     bisector = axis_in_parent + _E3
     bisector = bisector / jnp.linalg.norm(bisector, axis=-1, keepdims=True)
@@ -157,89 +176,105 @@ def reference_geometry(structure: Structure, params: StructureParameters) -> Ref
     attach = (kind == JOINT_ATTACH)[:, None, None]
     pre = jnp.where(bend, half, jnp.where(attach, relative, eye))
     post = jnp.where(bend, half, eye)
+    ground = is_root[:, None, None]
+    parent_map = jnp.where(ground, 0.0, transpose3(pre))
     parent_length = length[parent_index]
     tributary = jnp.where(kind == JOINT_BEND, 0.5 * (length + parent_length), 0.5 * length)
+
+    _, _, _, _, tree = spring_joint_topology(structure)
+    parent_map, child_map, tributary = parent_map[tree], post[tree], tributary[tree]
+    if structure.derived_frames:
+        # Derived joints (further clamps, loop closures): rotation log(D^T Q_a^T Q_b) with
+        # the reference relative rotation D = Q_a0^T Q_b0 (identity against the ground).
+        da = np.array([f[0] for f in structure.derived_frames], dtype=np.int32)
+        db = np.array([f[1] for f in structure.derived_frames], dtype=np.int32)
+        on_ground = (da == GROUND)[:, None, None]
+        frame_a = jnp.where(on_ground, frame[db], frame[np.maximum(da, 0)])
+        derived_reference = matmul3(transpose3(frame_a), frame[db])
+        dkind = np.array(structure.derived_kind)
+        derived_tributary = jnp.where(
+            dkind == JOINT_BEND, 0.5 * (length[db] + length[np.maximum(da, 0)]), 0.5 * length[db]
+        )
+        parent_map = jnp.concatenate(
+            [parent_map, jnp.where(on_ground, 0.0, transpose3(derived_reference))])
+        child_map = jnp.concatenate(
+            [child_map, jnp.broadcast_to(jnp.eye(3), (len(db), 3, 3))])
+        tributary = jnp.concatenate([tributary, derived_tributary])
 
     sign = np.array(
         [1.0 if st == nodes[0] else -1.0
          for st, nodes in zip(structure.segment_start, structure.segment_nodes)]
     )
     end_vector = (sign * length)[:, None] * _E3
-
-    if structure.derived_frames:
-        da = np.array([f[0] for f in structure.derived_frames], dtype=np.int32)
-        db = np.array([f[1] for f in structure.derived_frames], dtype=np.int32)
-        ground = (da == GROUND)[:, None, None]
-        frame_a = jnp.where(ground, frame[db], frame[np.maximum(da, 0)])
-        derived_reference = matmul3(transpose3(frame_a), frame[db])
-        dkind = np.array(structure.derived_kind)
-        derived_tributary = jnp.where(
-            dkind == JOINT_BEND, 0.5 * (length[db] + length[np.maximum(da, 0)]), 0.5 * length[db]
-        )
-    else:
-        derived_reference = jnp.zeros((0, 3, 3))
-        derived_tributary = jnp.zeros((0,))
     return ReferenceGeometry(
-        frame=frame, length=length, end_vector=end_vector, pre=pre, post=post,
-        tributary=tributary, derived_reference=derived_reference,
-        derived_tributary=derived_tributary,
+        frame=frame, length=length, end_vector=end_vector, joint_parent_map=parent_map,
+        joint_child_map=child_map, joint_tributary=tributary,
     )
 
 
 class Configuration(eqx.Module):
-    """Deformed configuration. Shapes: ``S`` segments, ``N`` nodes, ``D`` derived joints."""
+    """Deformed configuration. Shapes: ``S`` segments, ``N`` nodes."""
 
-    frame: Array  # [S, 3, 3] deformed material frames
+    frame: Array  # [S, 3, 3] deformed material frames Q_s = Q_s0 exp(phi_s)
     segment_start: Array  # [S, 3] m
     segment_end: Array  # [S, 3] m
     node_position: Array  # [N, 3] m
-    derived_rotation: Array  # [D, 3] rad, in the frame of segment b
 
 
 def initial_state(structure: Structure, params: StructureParameters) -> dict:
-    """The undeformed state: zero joint rotations, root at its reference position."""
+    """The undeformed state: zero segment rotations, root at its reference position."""
     return {
         "root_position": params.node_position[structure.root_node],
-        "joint_rotation": jnp.zeros((structure.segment_count, 3)),
+        "segment_rotation": jnp.zeros((structure.segment_count, 3)),
     }
 
 
-def configuration(structure: Structure, geometry: ReferenceGeometry, state: dict) -> Configuration:
-    """Deformed frames and positions from the state (forward kinematics along the tree)."""
-    theta = state["joint_rotation"]
-    joint = matmul3(matmul3(geometry.pre, rotation_matrix(theta)), geometry.post)
-    is_root = np.array([p == GROUND for p in structure.orientation_parent])
-    local = jnp.where(is_root[:, None, None], matmul3(geometry.frame, joint), joint)
-    frame = compose_along_tree(
-        local, structure.orientation_parent, lambda anc, own: matmul3(anc, own), jnp.eye(3)
-    )
-    step = matvec3(frame, geometry.end_vector)
-    offset = compose_along_tree(
-        step, structure.position_parent, lambda anc, own: anc + own, jnp.zeros(3)
-    )
-    segment_end = state["root_position"] + offset
+def _position_sum_matrix(structure: Structure) -> np.ndarray:
+    """``A[s, k] = 1`` when segment ``k`` lies on the position path from the root to the end
+    of segment ``s`` (``s`` included), so that ``segment_end = root + A @ step``."""
+    count = structure.segment_count
+    matrix = np.zeros((count, count))
+    for s in range(count):  # BFS order: a parent's row is complete before its children's
+        p = structure.position_parent[s]
+        if p != GROUND:
+            matrix[s] = matrix[p]
+        matrix[s, s] = 1.0
+    return matrix
+
+
+def segment_steps(geometry: ReferenceGeometry, state: dict) -> tuple[Array, Array]:
+    """Deformed frames ``Q_s = Q_s0 exp(phi_s)`` ``[S, 3, 3]`` and the world vectors from each
+    segment's kinematic start to its end ``[S, 3]`` [m]."""
+    frame = matmul3(geometry.frame, rotation_matrix(state["segment_rotation"]))
+    return frame, matvec3(frame, geometry.end_vector)
+
+
+def positions_from_steps(structure: Structure, root_position: Array, step: Array):
+    """Segment starts and ends ``[S, 3]`` and node positions ``[N, 3]``, all linear in
+    ``(root_position [3], step [S, 3])``."""
+    if _is_chain(structure):
+        offset = jnp.cumsum(step, axis=0)
+    else:
+        offset = jnp.asarray(_position_sum_matrix(structure), step.dtype) @ step
+    segment_end = root_position + offset
     segment_start = segment_end - step
     node_segment = np.array(structure.node_segment, dtype=np.int32)
     node_position = jnp.where(
         (node_segment >= 0)[:, None], take_rows(segment_end, np.maximum(node_segment, 0)),
-        state["root_position"],
+        root_position,
     )
-    if structure.derived_frames:
-        da = np.array([f[0] for f in structure.derived_frames], dtype=np.int32)
-        db = np.array([f[1] for f in structure.derived_frames], dtype=np.int32)
-        frame_b = take_rows(frame, db)
-        frame_a = jnp.where(
-            (da == GROUND)[:, None, None], take_rows(geometry.frame, db),
-            take_rows(frame, np.maximum(da, 0)),
-        )
-        relative = matmul3(transpose3(frame_a), frame_b)
-        derived = rotation_vector(matmul3(transpose3(geometry.derived_reference), relative))
-    else:
-        derived = jnp.zeros((0, 3))
-    return Configuration(
-        frame=frame, segment_start=segment_start, segment_end=segment_end,
-        node_position=node_position, derived_rotation=derived,
-    )
+    return segment_start, segment_end, node_position
+
+
+def _is_chain(structure: Structure) -> bool:
+    return all(p == s - 1 for s, p in enumerate(structure.position_parent))
+
+
+def configuration(structure: Structure, geometry: ReferenceGeometry, state: dict) -> Configuration:
+    """Deformed frames and positions from the state (vectorised over segments)."""
+    frame, step = segment_steps(geometry, state)
+    start, end, nodes = positions_from_steps(structure, state["root_position"], step)
+    return Configuration(frame=frame, segment_start=start, segment_end=end, node_position=nodes)
 
 
 class JointSet(eqx.Module):
@@ -253,25 +288,40 @@ class JointSet(eqx.Module):
     frame_segment: tuple[int, ...] = eqx.field(static=True)  # [J] segment giving the frame
 
 
-def spring_joints(
-    structure: Structure, geometry: ReferenceGeometry, config: Configuration, state: dict
-) -> JointSet:
-    """Gather every joint that carries a spring (free, pinned joints are left out)."""
-    tree = np.array([s for s, spring in enumerate(structure.joint_spring) if spring], np.int32)
-    rotation = jnp.concatenate([take_rows(state["joint_rotation"], tree), config.derived_rotation])
-    tributary = jnp.concatenate([geometry.tributary[tree], geometry.derived_tributary])
-    derived_post = jnp.broadcast_to(jnp.eye(3), (len(structure.derived_frames), 3, 3))
+def relative_joint_rotation(parent_rotation: Array, child_rotation: Array,
+                            parent_map: Array, child_map: Array, grounded) -> Array:
+    """Joint rotation vector ``theta = log(exp(-U phi_a) exp(V phi_b))`` [rad], ``[..., 3]``.
+
+    From ``Q_s = Q_s0 exp(phi_s)`` and ``exp(theta) = H_pre^T Q_a^T Q_b H_post^T`` with the
+    reference split ``Q_a0^T Q_b0 = H_pre H_post``: ``U = H_pre^T``, ``V = H_post``. A joint
+    to the ground (``grounded``) has ``theta = V phi_b`` exactly.
+    """
+    u = matvec3(parent_map, parent_rotation)
+    v = matvec3(child_map, child_rotation)
+    coupled = rotation_vector(matmul3(rotation_matrix(-u), rotation_matrix(v)))
+    return jnp.where(grounded, v, coupled)
+
+
+def spring_joints(structure: Structure, geometry: ReferenceGeometry, state: dict) -> JointSet:
+    """Every joint that carries a spring (free, pinned joints are left out), with its
+    rotation from the two segment rotations it connects."""
+    parent, child, node, law, _ = spring_joint_topology(structure)
+    phi = state["segment_rotation"]
+    grounded = (parent == GROUND)[:, None]
+    rotation = relative_joint_rotation(
+        take_rows(phi, np.maximum(parent, 0)), take_rows(phi, child),
+        geometry.joint_parent_map, geometry.joint_child_map, grounded)
     return JointSet(
         rotation=rotation,
-        tributary=tributary,
-        post=jnp.concatenate([geometry.post[tree], derived_post]),
-        node=tuple(structure.joint_node[s] for s in tree) + structure.derived_node,
-        law_tube=tuple(structure.joint_law_tube[s] for s in tree) + structure.derived_law_tube,
-        frame_segment=tuple(int(s) for s in tree) + tuple(f[1] for f in structure.derived_frames),
+        tributary=geometry.joint_tributary,
+        post=geometry.joint_child_map,
+        node=node,
+        law_tube=law,
+        frame_segment=tuple(int(s) for s in child),
     )
 
 
-def _law_groups(law_tube: tuple[int, ...]) -> dict[int, np.ndarray]:
+def law_groups(law_tube: tuple[int, ...]) -> dict[int, np.ndarray]:
     groups: dict[int, list[int]] = {}
     for j, t in enumerate(law_tube):
         groups.setdefault(t, []).append(j)
@@ -282,7 +332,7 @@ def strain_energy(joints: JointSet, params: StructureParameters) -> Array:
     """Sum over joints of ``l [W_bend(kappa_b^2) + W_twist(kappa_t^2)]`` [J]."""
     total = jnp.zeros(())
     radius_all = take_rows(params.node_radius, joints.node)
-    for tube, idx in _law_groups(joints.law_tube).items():
+    for tube, idx in law_groups(joints.law_tube).items():
         length = take_rows(joints.tributary, idx)
         curvature = take_rows(joints.rotation, idx) / length[:, None]
         pressure = params.pressure[tube]
@@ -303,7 +353,7 @@ def joint_moments(joints: JointSet, params: StructureParameters) -> tuple[Array,
     moment = jnp.zeros((count, 3))
     regime = jnp.zeros((count,), dtype=jnp.int32)
     radius_all = params.node_radius[np.array(joints.node, dtype=np.int32)]
-    for tube, idx in _law_groups(joints.law_tube).items():
+    for tube, idx in law_groups(joints.law_tube).items():
         curvature = joints.rotation[idx] / joints.tributary[idx][:, None]
         pressure, radius = params.pressure[tube], radius_all[idx]
         bend = jnp.sqrt(curvature[:, 0] ** 2 + curvature[:, 1] ** 2)
@@ -330,21 +380,22 @@ def segment_loads(structure: Structure, geometry: ReferenceGeometry, params) -> 
 
 
 def load_potential(
-    structure: Structure, geometry: ReferenceGeometry, config: Configuration, params
+    structure: Structure, geometry: ReferenceGeometry, config: Configuration, params,
+    state: dict,
 ) -> Array:
     """Potential of the dead loads [J]: ``-sum F.x - sum q L . x_mid - sum T . psi``.
 
-    Torques act on the segment ending at their node; ``psi`` is that segment's rotation
-    vector from the reference (a conservative axial-vector torque, exact for a fixed axis).
+    Torques act on the segment ending at their node; ``psi = Q_s0 phi_s`` is that segment's
+    world rotation vector from the reference (a conservative axial-vector torque, exact for
+    a fixed axis).
     """
     potential = -jnp.sum(params.node_force * config.node_position)
     midpoint = 0.5 * (config.segment_start + config.segment_end)
     potential = potential - jnp.sum(segment_loads(structure, geometry, params) * midpoint)
     if structure.torque_nodes:
         seg = np.array([structure.node_segment[n] for n in structure.torque_nodes], np.int32)
-        reference = transpose3(take_rows(geometry.frame, seg))
-        increment = matmul3(take_rows(config.frame, seg), reference)
-        potential = potential - jnp.sum(params.node_torque * rotation_vector(increment))
+        psi = matvec3(take_rows(geometry.frame, seg), take_rows(state["segment_rotation"], seg))
+        potential = potential - jnp.sum(params.node_torque * psi)
     return potential
 
 

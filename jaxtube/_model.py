@@ -22,17 +22,24 @@ import numpy as np
 from jax import Array
 
 from ._mechanics import (
+    Configuration,
     ReferenceGeometry,
     configuration,
     initial_state,
     joint_moments,
+    law_groups,
     load_potential,
+    positions_from_steps,
     reference_geometry,
+    relative_joint_rotation,
+    segment_steps,
+    spring_joint_topology,
     spring_joints,
     strain_energy,
     support_constraints,
     world_joint_moments,
 )
+from ._rotation import matvec3, rotation_matrix, transpose3
 from ._solver import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
 from ._structure import GROUND, JOINT_GROUND, Structure, StructureParameters
 
@@ -65,7 +72,8 @@ class Solution(eqx.Module):
     ``[K]`` step axis).
 
     Attributes:
-        state: ``{"root_position": [3], "joint_rotation": [S, 3]}``.
+        state: ``{"root_position": [3], "segment_rotation": [S, 3]}`` (see
+            ``jaxtube._mechanics``).
         multipliers: ``[m]`` Lagrange multipliers (supports, loops, control).
         converged, iterations, result, residual: solver report (see RESULT_MESSAGES).
         node_position: deformed node positions ``[N, 3]`` [m].
@@ -117,26 +125,102 @@ def total_energy(structure: Structure, params, geometry: ReferenceGeometry, stat
 
 
 def _energy_of(structure, params, geometry, config, state) -> Array:
-    joints = spring_joints(structure, geometry, config, state)
-    return strain_energy(joints, params) + load_potential(structure, geometry, config, params)
+    joints = spring_joints(structure, geometry, state)
+    return strain_energy(joints, params) + load_potential(structure, geometry, config, params,
+                                                          state)
+
+
+def _constraints(structure, config, state, params, control) -> Array:
+    c = support_constraints(structure, config, state, params)
+    if control is not None:
+        node, direction, value = control
+        moved = config.node_position[node] - params.node_position[node]
+        c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
+    return c
 
 
 def _objective(structure, geometry, state, params, control):
     """Energy [J] and constraints [m] from one evaluation of the kinematics."""
     config = configuration(structure, geometry, state)
     energy = _energy_of(structure, params, geometry, config, state)
-    c = support_constraints(structure, config, state, params)
-    if control is not None:
-        node, direction, value = control
-        moved = config.node_position[node] - params.node_position[node]
-        c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
-    return energy, c
+    return energy, _constraints(structure, config, state, params, control)
+
+
+def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params, control,
+                       state: dict, multipliers: Array) -> Array:
+    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state, ``[n, n]``, assembled
+    from element Hessians (the exact Hessian, not an approximation).
+
+    Node positions are ``root + sum_s Q_s0 exp(phi_s) e_s`` and every load potential and
+    constraint is linear in the root position and the segment vectors ``step_s``, so with
+    ``g_s = dL/dstep_s`` (one reverse pass) the position part contributes a 3 x 3 block
+    ``d^2/dphi_s^2 [g_s . Q_s0 exp(phi_s) e_s]`` per segment; each spring joint contributes a
+    6 x 6 block over the rotations of its two segments; torques are linear in ``phi``. The
+    blocks come from ``jax.hessian`` of these small element functions, vmapped, and are
+    scatter-added at static indices. Cost grows linearly with the segment count (the
+    dense autodiff Hessian grows quadratically and pushes every unknown through the chain).
+    """
+    phi = state["segment_rotation"]
+    frame, step = segment_steps(geometry, state)
+
+    def linear_part(step):
+        start, end, nodes = positions_from_steps(structure, state["root_position"], step)
+        config = Configuration(frame=frame, segment_start=start, segment_end=end,
+                               node_position=nodes)
+        potential = load_potential(structure, geometry, config, params, state)
+        return potential + jnp.dot(multipliers,
+                                   _constraints(structure, config, state, params, control))
+
+    step_force = jax.grad(linear_part)(step)
+    body_force = matvec3(transpose3(geometry.frame), step_force)
+
+    def segment_term(phi_s, force_s, end_s):
+        return force_s @ (rotation_matrix(phi_s) @ end_s)
+
+    segment_blocks = jax.vmap(jax.hessian(segment_term))(phi, body_force, geometry.end_vector)
+
+    leaves, treedef = jax.tree_util.tree_flatten(state)  # the order of ravel_pytree
+    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
+    index = treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
+                               for o, leaf in zip(offsets, leaves)])
+    rotation_index = index["segment_rotation"]  # [S, 3] positions in the flat state
+    rows = [np.broadcast_to(rotation_index[:, :, None], segment_blocks.shape)]
+    cols = [np.broadcast_to(rotation_index[:, None, :], segment_blocks.shape)]
+    values = [segment_blocks]
+
+    parent, child, nodes, law, _ = spring_joint_topology(structure)
+    for tube, idx in law_groups(law).items():
+        bending, torsion = params.bending_laws[tube], params.torsion_laws[tube]
+        pressure = params.pressure[tube]
+
+        def joint_energy(pair, parent_map, child_map, grounded, tributary, radius):
+            theta = relative_joint_rotation(pair[:3], pair[3:], parent_map, child_map, grounded)
+            kappa = theta / tributary
+            w = bending.energy_density(kappa[0] ** 2 + kappa[1] ** 2, pressure, radius)
+            return tributary * (w + torsion.energy_density(kappa[2] ** 2, pressure, radius))
+
+        a, b = np.maximum(parent[idx], 0), child[idx]
+        pair = jnp.concatenate([phi[a], phi[b]], axis=1)
+        radius = params.node_radius[np.array([nodes[j] for j in idx], dtype=np.int32)]
+        blocks = jax.vmap(jax.hessian(joint_energy))(
+            pair, geometry.joint_parent_map[idx], geometry.joint_child_map[idx],
+            parent[idx] == -1, geometry.joint_tributary[idx], radius)
+        pair_index = np.concatenate([rotation_index[a], rotation_index[b]], axis=1)  # [Jg, 6]
+        rows.append(np.broadcast_to(pair_index[:, :, None], blocks.shape))
+        cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
+        values.append(blocks)
+
+    n = int(offsets[-1])
+    rows = np.concatenate([r.reshape(-1) for r in rows])
+    cols = np.concatenate([c.reshape(-1) for c in cols])
+    values = jnp.concatenate([v.reshape(-1) for v in values])
+    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
     state = eq.state
     config = configuration(structure, geometry, state)
-    joints = spring_joints(structure, geometry, config, state)
+    joints = spring_joints(structure, geometry, state)
     moment, regime = joint_moments(joints, params)
     n_support = len(structure.supports)
     reactions = -jnp.reshape(eq.multipliers[: 3 * n_support], (n_support, 3))
@@ -209,8 +293,14 @@ def _solve(structure, params, geometry, ctrl, state0, lam0, solver, factor) -> S
         p, g, c = args
         return _objective(structure, g, state, p, None if c is None else (ctrl[0], c[0], c[1]))
 
+    def hessian(state, multipliers, args):
+        p, g, c = args
+        return lagrangian_hessian(structure, g, p, None if c is None else (ctrl[0], c[0], c[1]),
+                                  state, multipliers)
+
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
-    eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0)
+    eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
+                           hessian=hessian)
     return _post_process(structure, params, geometry, eq, ctrl, factor)
 
 

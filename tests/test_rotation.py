@@ -99,7 +99,7 @@ def test_joint_energy_gradient_and_hessian_at_zero_rotation():
             gj = float(torsion_law.initial_stiffness(2e4, 0.075))
 
         def energy(theta):
-            state = {"root_position": params.node_position[0], "joint_rotation": theta[None]}
+            state = {"root_position": params.node_position[0], "segment_rotation": theta[None]}
             return jt.total_energy(structure, params, geometry, state)
 
         zero = jnp.zeros(3)

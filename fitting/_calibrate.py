@@ -1,0 +1,496 @@
+"""Calibration: fit the pivot scaling of the bending law to measured force-deflection curves.
+
+All curves are fitted in one joint weighted least-squares problem in force,
+
+    minimise  sum_i w_i ((F_model(u_i; theta) - F_i) / sigma)^2  (+ prior terms),
+
+with ``F_model`` the jaxtube equilibrium force at the measured tip deflection ``u_i``
+(displacement control, so plateau points count; :mod:`fitting._rig`). The residual
+Jacobian comes from forward-mode derivatives through the equilibrium solve, which jaxtube
+gives by the implicit function theorem (never by differentiating the Newton loop).
+
+Optimiser: Levenberg-Marquardt with Marquardt's diagonal scaling and Nielsen's damping
+update (Madsen, Nielsen & Tingleff, *Methods for non-linear least squares problems*, 2004,
+section 3.2); bounds by projection; an optional robust (Huber) loss by iteratively
+reweighted least squares; optional multi-start from perturbed physics-based guesses.
+A step at which any equilibrium fails to converge is rejected (the damping grows), never
+silently accepted.
+
+Uncertainty (Laplace / Gauss-Newton): ``Cov = s^2 (J^T J)^+`` in the fitted coordinates,
+``s^2`` the residual variance per degree of freedom when the noise is estimated (1 when the
+user gives it); standard errors of the reported ``A, B, C`` by the delta method. Parameters
+the data cannot identify are found from the scaled information matrix and flagged in words.
+Prediction bands: ``Var F(u) = g^T Cov g`` with ``g = dF/dtheta``, one JVP per fitted
+coordinate through the solve (the delta method).
+
+Noise estimate (when not given): the difference-based estimator of Gasser, Sroka &
+Jennen-Steinmetz (Biometrika 1986) on each curve ordered by deflection, pooled over curves;
+it is unbiased for a locally linear curve and needs no model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Mapping, Sequence
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._data import MeasuredData
+from ._rig import CantileverRig, CurveBatch, TubeModel, batch_curves, unpad
+from ._scaling import PivotScaling, initial_vector, reference_specimen
+
+# Default bounds of the exponents B and C (physics: 0 to 3 for p^B r^C; generous).
+EXPONENT_BOUNDS = (-2.0, 5.0)
+# A fitted coordinate whose standard error exceeds this is "not identified" (log a: a
+# factor e; exponents: 0.5, i.e. a factor ~2 per decade of the scaling variable).
+UNIDENTIFIED_SE = 1.0
+UNIDENTIFIED_SE_EXPONENT = 0.5
+STRONG_CORRELATION = 0.98
+
+
+class FitError(RuntimeError):
+    """The calibration could not start or the equilibrium solves failed."""
+
+
+def estimate_noise(data: MeasuredData) -> float:
+    """Pooled force noise standard deviation [N] (Gasser-Sroka-Jennen-Steinmetz).
+
+    For three consecutive points (ordered by deflection) the pseudo-residual
+    ``e = a y_{i-1} + b y_{i+1} - y_i`` with ``a, b`` the linear-interpolation weights has
+    variance ``(a^2 + b^2 + 1) sigma^2`` when the curve is locally linear.
+    """
+    total, count = 0.0, 0
+    for curve in data:
+        order = np.argsort(curve.deflection, kind="stable")
+        x, y = curve.deflection[order], curve.force[order]
+        if x.size < 3:
+            continue
+        x0, x1, x2 = x[:-2], x[1:-1], x[2:]
+        span = x2 - x0
+        ok = span > 0
+        a = np.where(ok, (x2 - x1) / np.where(ok, span, 1.0), 0.5)
+        b = 1.0 - a
+        e = a * y[:-2] + b * y[2:] - y[1:-1]
+        total += float(np.sum(e**2 / (a**2 + b**2 + 1.0)))
+        count += e.size
+    if count == 0:
+        raise ValueError(f"{data.source}: too few points to estimate the noise; give it")
+    return math.sqrt(total / count)
+
+
+@dataclasses.dataclass(frozen=True)
+class Prior:
+    """Gaussian prior on a fitted coordinate: exponents in their own units, ``A`` on
+    ``log A`` (``sd`` is then a relative spread; 0.1 is about 10 %)."""
+
+    mean: float
+    sd: float
+
+
+@dataclasses.dataclass(frozen=True)
+class FitOptions:
+    """User choices of a calibration.
+
+    Attributes:
+        noise_N: force noise standard deviation [N]; None = :func:`estimate_noise`.
+        fixed: ``{name: value}`` coordinates held fixed (``A`` in SI, exponents as is).
+        priors: ``{name: Prior}``.
+        bounds: ``{name: (low, high)}`` for exponents (default :data:`EXPONENT_BOUNDS`).
+        loss: ``"linear"`` (least squares) or ``"huber"`` (robust, threshold
+            ``huber_threshold`` noise standard deviations).
+        multistart: number of starts (1 = the physics-based guess only).
+        max_iterations, ftol, gtol: Levenberg-Marquardt stopping rules.
+        seed: of the multi-start perturbations.
+        progress: show a progress bar.
+    """
+
+    noise_N: float | None = None
+    fixed: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    priors: Mapping[str, Prior] = dataclasses.field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    loss: str = "linear"
+    huber_threshold: float = 1.345
+    multistart: int = 1
+    max_iterations: int = 60
+    ftol: float = 1e-9
+    gtol: float = 1e-8
+    seed: int = 0
+    progress: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class Convergence:
+    """How the optimisation ended."""
+
+    converged: bool
+    message: str
+    iterations: int
+    residual_evaluations: int
+    jacobian_evaluations: int
+    solver_calls: int  # equilibrium path solves (one per curve per evaluation)
+    seconds: float
+    starts: int
+    start_costs: tuple[float, ...]
+
+
+# --------------------------------------------------------------------------------------------
+# Residuals and Jacobians (compiled once per rig, scaling and data shape)
+# --------------------------------------------------------------------------------------------
+
+
+def _full_vector(free_values, base, free_index):
+    return jnp.asarray(base).at[jnp.asarray(free_index)].set(free_values)
+
+
+@partial(jax.jit, static_argnames=("rig", "scaling", "free_index"))
+def _model_forces(free_values, base, reference, batch_arrays, *, rig, scaling, free_index):
+    vector = _full_vector(free_values, base, free_index)
+    law = scaling.law(vector, reference[0], reference[1])
+    pressure, radius, length, deflection = batch_arrays
+    prediction = rig.predict(TubeModel(law), pressure, radius, length, deflection)
+    return prediction.force, prediction
+
+
+def _residual_fn(free_values, base, reference, batch_arrays, target, scale, prior_mean,
+                 prior_sd, *, rig, scaling, free_index):
+    force, prediction = _model_forces.__wrapped__(
+        free_values, base, reference, batch_arrays, rig=rig, scaling=scaling,
+        free_index=free_index)
+    residual = (scale * (force - target)).reshape(-1)
+    prior = (free_values - prior_mean) / prior_sd  # inf sd -> 0 (no prior)
+    return jnp.concatenate([residual, prior]), prediction
+
+
+_residuals = jax.jit(_residual_fn, static_argnames=("rig", "scaling", "free_index"))
+
+
+@partial(jax.jit, static_argnames=("rig", "scaling", "free_index"))
+def _residuals_and_jacobian(free_values, *args, rig, scaling, free_index):
+    def fn(x):
+        r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, free_index=free_index)
+        return r, (r, prediction)
+
+    jacobian, (residual, prediction) = jax.jacfwd(fn, has_aux=True)(free_values)
+    return residual, jacobian, prediction
+
+
+@partial(jax.jit, static_argnames=("rig", "scaling", "free_index"))
+def _forces_and_sensitivity(free_values, base, reference, batch_arrays, *, rig, scaling,
+                            free_index):
+    def fn(x):
+        force, prediction = _model_forces.__wrapped__(
+            x, base, reference, batch_arrays, rig=rig, scaling=scaling, free_index=free_index)
+        return force, (force, prediction.converged)
+
+    sensitivity, (force, converged) = jax.jacfwd(fn, has_aux=True)(free_values)
+    return force, sensitivity, converged
+
+
+# --------------------------------------------------------------------------------------------
+# The fit
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class FitProblem:
+    """Everything that defines the least-squares problem (built by :func:`fit`)."""
+
+    data: MeasuredData
+    batch: CurveBatch
+    rig: CantileverRig
+    scaling: PivotScaling
+    reference: tuple[float, float]
+    names: tuple[str, ...]
+    free_index: tuple[int, ...]
+    base: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    prior_mean: np.ndarray
+    prior_sd: np.ndarray
+    noise: float
+    noise_given: bool
+
+    @property
+    def free_names(self) -> list[str]:
+        return [self.names[i] for i in self.free_index]
+
+    def batch_arrays(self):
+        b = self.batch
+        return (b.pressure, b.radius, b.length, b.deflection)
+
+    def static(self):
+        return dict(rig=self.rig, scaling=self.scaling, free_index=self.free_index)
+
+    def scale(self, robust_weight=None):
+        w = self.batch.weight * (1.0 if robust_weight is None else robust_weight)
+        return np.sqrt(w) / self.noise
+
+    def residual_args(self, robust_weight=None):
+        return (self.base, np.asarray(self.reference), self.batch_arrays(), self.batch.force,
+                self.scale(robust_weight), self.prior_mean, self.prior_sd)
+
+
+def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
+                 rig: CantileverRig | None = None, options: FitOptions | None = None,
+                 initial: np.ndarray | None = None) -> FitProblem:
+    """Set up the least-squares problem: layout, first guess, fixed values, bounds, priors."""
+    scaling = scaling or PivotScaling()
+    rig = rig or CantileverRig()
+    options = options or FitOptions()
+    batch = batch_curves(data)
+    reference = reference_specimen(data)
+    names = tuple(scaling.names())
+    base = np.array(initial_vector(data, scaling) if initial is None else initial, float)
+    known = set(names)
+    for table in (options.fixed, options.priors, options.bounds):
+        unknown = sorted(set(table) - known)
+        if unknown:
+            raise ValueError(f"unknown parameter name(s) {unknown}; the fitted coordinates "
+                             f"are {', '.join(names)}")
+    for name, bound in options.bounds.items():
+        if name.endswith(".A"):
+            raise ValueError(f"{name}: bounds apply to exponents; constrain A by a prior")
+        if not bound[0] < bound[1]:
+            raise ValueError(f"{name}: bounds must satisfy low < high, got {bound}")
+    lower = np.full(len(names), -np.inf)
+    upper = np.full(len(names), np.inf)
+    prior_mean = np.zeros(len(names))
+    prior_sd = np.full(len(names), np.inf)
+    for i, name in enumerate(names):
+        if not name.endswith(".A"):
+            lower[i], upper[i] = options.bounds.get(name, EXPONENT_BOUNDS)
+        if name in options.priors:
+            prior = options.priors[name]
+            if not prior.sd > 0:
+                raise ValueError(f"{name}: a prior needs sd > 0, got {prior.sd}")
+            prior_mean[i], prior_sd[i] = prior.mean, prior.sd
+    # Fixed exponents first, then fixed A values (which need the exponents to convert).
+    exponent_of = {}
+    for name, value in options.fixed.items():
+        if not name.endswith(".A"):
+            base[names.index(name)] = float(value)
+    for name in names:
+        if name.endswith(".A"):
+            exponent_of[name] = [names.index(name[:-1] + e) for e in scaling.exponents]
+    log_reference = _log_reference(scaling, reference)
+    for name, value in options.fixed.items():
+        if name.endswith(".A"):
+            if not value > 0:
+                raise ValueError(f"{name}: A must be > 0, got {value}")
+            exps = base[exponent_of[name]]
+            base[names.index(name)] = math.log(value) + float(np.dot(exps, log_reference))
+    for name, prior in options.priors.items():
+        if name.endswith(".A"):
+            i = names.index(name)
+            if not prior.mean > 0:
+                raise ValueError(f"{name}: the prior mean of A must be > 0, got {prior.mean}")
+            # log a = log A + B log s_ref: the prior is on log A, centred with the guess's B.
+            prior_mean[i] = math.log(prior.mean) + float(np.dot(base[exponent_of[name]],
+                                                                 log_reference))
+    free_index = tuple(i for i, name in enumerate(names) if name not in options.fixed)
+    if not free_index:
+        raise ValueError("every parameter is fixed: nothing to fit")
+    noise = estimate_noise(data) if options.noise_N is None else float(options.noise_N)
+    if not noise > 0:
+        raise ValueError(f"the force noise must be > 0 [N], got {noise}")
+    free = np.asarray(free_index)
+    return FitProblem(
+        data=data, batch=batch, rig=rig, scaling=scaling, reference=reference, names=names,
+        free_index=free_index, base=base, lower=lower[free], upper=upper[free],
+        prior_mean=prior_mean[free], prior_sd=prior_sd[free], noise=noise,
+        noise_given=options.noise_N is not None)
+
+
+def _log_reference(scaling: PivotScaling, reference) -> np.ndarray:
+    p_ref, r_ref = reference
+    if scaling.form == "paper":
+        return np.array([math.log(p_ref * r_ref**3)])
+    return np.array([math.log(p_ref), math.log(r_ref)])
+
+
+def _huber_weight(residual, threshold):
+    a = np.abs(residual)
+    return np.where(a <= threshold, 1.0, threshold / np.maximum(a, 1e-300))
+
+
+def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOptions, bar=None):
+    """One LM run from ``x0`` (free coordinates). Returns ``(x, cost, report dict)``."""
+    static = problem.static()
+    n_data = problem.batch.force.size
+    robust = None
+    counts = {"residual": 0, "jacobian": 0}
+
+    def evaluate(x, with_jacobian):
+        args = problem.residual_args(robust)
+        if with_jacobian:
+            counts["jacobian"] += 1
+            r, jac, pred = _residuals_and_jacobian(jnp.asarray(x), *args, **static)
+            return np.asarray(r), np.asarray(jac), pred
+        counts["residual"] += 1
+        r, pred = _residuals(jnp.asarray(x), *args, **static)
+        return np.asarray(r), None, pred
+
+    def ok(r, pred):
+        return bool(np.all(np.asarray(pred.converged)[problem.batch.mask])) and bool(
+            np.all(np.isfinite(r)))
+
+    x = np.clip(np.asarray(x0, float), problem.lower, problem.upper)
+    r, jac, pred = evaluate(x, True)
+    if not ok(r, pred):
+        bad = int(np.sum(~np.asarray(pred.converged)[problem.batch.mask]))
+        raise FitError(f"the equilibrium solves failed at the initial guess ({bad} points did "
+                       "not converge); check the data units (bar, mm, m, N)")
+    if options.loss == "huber":
+        robust = _huber_weight(r[:n_data].reshape(problem.batch.force.shape),
+                               options.huber_threshold)
+        r, jac, pred = evaluate(x, True)
+    cost = 0.5 * float(r @ r)
+    jtj = jac.T @ jac
+    mu = 1e-3 * float(np.max(np.diag(jtj)))
+    nu = 2.0
+    message, converged = "maximum number of iterations reached", False
+    iteration = 0
+    for iteration in range(1, options.max_iterations + 1):
+        g = jac.T @ r
+        if float(np.max(np.abs(g))) <= options.gtol * max(1.0, cost):
+            message, converged = "gradient below tolerance", True
+            break
+        diag = np.maximum(np.diag(jtj), 1e-12 * max(float(np.max(np.diag(jtj))), 1e-300))
+        accepted = False
+        while not accepted:
+            step = np.linalg.solve(jtj + mu * np.diag(diag), -g)
+            x_new = np.clip(x + step, problem.lower, problem.upper)
+            step = x_new - x
+            predicted = -(g @ step + 0.5 * step @ (jtj @ step))
+            r_new, _, pred_new = evaluate(x_new, False)
+            if ok(r_new, pred_new) and predicted > 0:
+                cost_new = 0.5 * float(r_new @ r_new)
+                rho = (cost - cost_new) / predicted
+            else:
+                cost_new, rho = math.inf, -1.0
+            if rho > 0:
+                accepted = True
+                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
+            else:
+                mu *= nu
+                nu *= 2.0
+                if mu > 1e16 * max(float(np.max(diag)), 1.0):
+                    break
+        if not accepted:
+            message, converged = "no further decrease possible (damping exhausted)", True
+            break
+        relative_change = (cost - cost_new) / max(cost, 1e-300)
+        small_step = float(np.max(np.abs(step))) <= 1e-10 * (1.0 + float(np.max(np.abs(x))))
+        x = x_new
+        if options.loss == "huber":
+            robust = _huber_weight(r_new[:n_data].reshape(problem.batch.force.shape),
+                                   options.huber_threshold)
+        r, jac, pred = evaluate(x, True)
+        cost = 0.5 * float(r @ r)
+        jtj = jac.T @ jac
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(rmse_N=f"{_rmse(problem, pred):.4g}", damping=f"{mu:.1e}")
+        if relative_change <= options.ftol or small_step:
+            message, converged = ("relative decrease of the loss below ftol" if not small_step
+                                  else "step below tolerance"), True
+            break
+    return x, cost, dict(message=message, converged=converged, iterations=iteration,
+                         residual=counts["residual"], jacobian=counts["jacobian"],
+                         r=r, jac=jac, prediction=pred, robust=robust)
+
+
+def _rmse(problem: FitProblem, prediction) -> float:
+    mask = problem.batch.mask
+    err = (np.asarray(prediction.force) - problem.batch.force)[mask]
+    return float(np.sqrt(np.mean(err**2)))
+
+
+def fit(data: MeasuredData, scaling: PivotScaling | None = None,
+        rig: CantileverRig | None = None, options: FitOptions | None = None,
+        initial: np.ndarray | None = None):
+    """Fit the pivot scaling to every curve of ``data`` at once; returns a
+    :class:`fitting.FitResult` (estimates, uncertainties, identifiability, RMSE, report)."""
+    from ._result import FitResult
+
+    options = options or FitOptions()
+    if options.loss not in ("linear", "huber"):
+        raise ValueError(f"loss must be 'linear' or 'huber', got {options.loss!r}")
+    if options.multistart < 1:
+        raise ValueError(f"multistart must be >= 1, got {options.multistart}")
+    problem = make_problem(data, scaling, rig, options, initial)
+    x0 = problem.base[np.asarray(problem.free_index)]
+    rng = np.random.default_rng(options.seed)
+    starts = [x0] + [
+        x0 + np.where(np.array([n.endswith(".A") for n in problem.free_names]),
+                      0.5 * rng.standard_normal(x0.size), 0.2 * rng.standard_normal(x0.size))
+        for _ in range(options.multistart - 1)]
+    bar = None
+    if options.progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=options.max_iterations * len(starts), desc="fit (LM iterations)",
+                   unit="it", leave=False)
+    t0 = time.perf_counter()
+    best, costs, totals = None, [], {"residual": 0, "jacobian": 0, "iterations": 0}
+    try:
+        for start in starts:
+            try:
+                x, cost, report = _levenberg_marquardt(problem, start, options, bar)
+            except FitError:
+                if len(starts) == 1:
+                    raise
+                costs.append(math.inf)
+                continue
+            costs.append(cost)
+            for key in ("residual", "jacobian"):
+                totals[key] += report[key]
+            totals["iterations"] += report["iterations"]
+            if best is None or cost < best[1]:
+                best = (x, cost, report)
+    finally:
+        if bar is not None:
+            bar.close()
+    if best is None:
+        raise FitError("every start failed: the equilibrium solves did not converge")
+    x, cost, report = best
+    evaluations = totals["residual"] + totals["jacobian"]
+    convergence = Convergence(
+        converged=report["converged"], message=report["message"],
+        iterations=totals["iterations"], residual_evaluations=totals["residual"],
+        jacobian_evaluations=totals["jacobian"],
+        solver_calls=evaluations * len(problem.data),
+        seconds=time.perf_counter() - t0, starts=len(starts), start_costs=tuple(costs))
+    return FitResult.from_optimum(problem, x, report, convergence)
+
+
+def model_forces(problem: FitProblem, free_values, batch_arrays):
+    """Model forces ``[C, P]`` and per-point convergence for a fitted vector (jitted)."""
+    force, prediction = _model_forces(jnp.asarray(free_values), problem.base,
+                                      np.asarray(problem.reference), batch_arrays,
+                                      **problem.static())
+    return np.asarray(force), prediction
+
+
+def forces_and_sensitivity(problem: FitProblem, free_values, batch_arrays):
+    """Forces ``[C, P]``, ``dF/dtheta`` ``[C, P, n_free]`` and convergence (jitted)."""
+    force, sens, converged = _forces_and_sensitivity(
+        jnp.asarray(free_values), problem.base, np.asarray(problem.reference), batch_arrays,
+        **problem.static())
+    return np.asarray(force), np.asarray(sens), np.asarray(converged)
+
+
+def specimen_arrays(pressure: Sequence[float], radius: Sequence[float],
+                    length: Sequence[float], deflection) -> tuple:
+    """Batch arrays for predictions at arbitrary specimens (deflection ``[C, P]`` [m])."""
+    return (np.asarray(pressure, float), np.asarray(radius, float), np.asarray(length, float),
+            np.asarray(deflection, float))
+
+
+__all__ = ["FitError", "FitOptions", "Prior", "Convergence", "estimate_noise", "fit",
+           "make_problem", "unpad"]

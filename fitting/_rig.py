@@ -1,0 +1,184 @@
+"""The test rigs of measured data, as jaxtube models: predicted force at measured deflections.
+
+A *rig* turns the specimen description of a measured curve (setup, pressure, radius,
+length) into a jaxtube structure and a displacement-controlled load path, and predicts the
+force at each measured deflection. All curves of one setup kind share one compiled
+structure: the specimen numbers are parameters, so a whole data set is one ``vmap``.
+
+``cantilever_tip`` (the bench test of Breukels & Ockels 2008): a straight tube along +x,
+clamped at the root, its tip driven straight down (``-z``) by ``deflection`` from the
+unloaded shape; the predicted force is the actuator's reaction along the drive direction,
+i.e. the dead vertical tip load that holds the tip there (positive downwards). Displacement
+control follows the collapse plateau, where force control fails.
+
+Each curve is solved as one continuation path (``lax.scan``) through its deflections in
+order of increasing magnitude; curves of different lengths are padded by repeating their
+last deflection (padding carries zero weight and costs almost nothing: the solver is
+already converged there).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxtube as jt
+
+from ._data import MeasuredData
+
+#: Segments per tube in the calibration model. With the half-tributary clamp joint a
+#: 12-segment chain is within about 0.1 % of the elastica tip deflection
+#: (tests/test_beam_references.py checks the convergence); well below measurement noise.
+DEFAULT_SEGMENTS = 12
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+class TubeModel(eqx.Module):
+    """What a calibration fits: the laws of the tube (and, later, effect parameters).
+
+    Attributes:
+        bending_law: moment-curvature law of bending (any :class:`jaxtube.AbstractMomentLaw`).
+        torsion_law: law of torsion (a cantilever with a vertical tip load does not twist).
+    """
+
+    bending_law: jt.AbstractMomentLaw
+    torsion_law: jt.AbstractMomentLaw = jt.LinearLaw(1.0)
+
+
+class CurveBatch(NamedTuple):
+    """Measured curves as padded arrays, in continuation order. ``C`` curves, ``P`` points.
+
+    pressure, radius, length: ``[C]`` [Pa, m, m]. deflection, force: ``[C, P]`` [m, N].
+    weight: ``[C, P]`` (0 on padding). order: ``[C, P]`` index of each padded point in its
+    curve's original point order (-1 on padding).
+    """
+
+    pressure: np.ndarray
+    radius: np.ndarray
+    length: np.ndarray
+    deflection: np.ndarray
+    force: np.ndarray
+    weight: np.ndarray
+    order: np.ndarray
+
+    @property
+    def mask(self) -> np.ndarray:
+        return self.order >= 0
+
+
+def batch_curves(data: MeasuredData) -> CurveBatch:
+    """Pad ``data``'s curves into a :class:`CurveBatch` (each curve ordered by |deflection|)."""
+    kinds = {curve.setup_kind for curve in data}
+    unsupported = kinds - {"cantilever_tip"}
+    if unsupported:
+        raise ValueError(f"{data.source}: setup kind(s) {sorted(unsupported)} cannot be fitted "
+                         "yet; the calibration models 'cantilever_tip'.")
+    width = max(curve.point_count for curve in data)
+    count = len(data)
+    deflection = np.zeros((count, width))
+    force = np.zeros((count, width))
+    weight = np.zeros((count, width))
+    order = np.full((count, width), -1, dtype=np.int64)
+    for c, curve in enumerate(data):
+        idx = np.argsort(np.abs(curve.deflection), kind="stable")
+        n = idx.size
+        deflection[c, :n] = curve.deflection[idx]
+        deflection[c, n:] = curve.deflection[idx[-1]]
+        force[c, :n] = curve.force[idx]
+        weight[c, :n] = curve.weight[idx]
+        order[c, :n] = idx
+    return CurveBatch(
+        pressure=np.array([c.pressure for c in data]), radius=np.array([c.radius for c in data]),
+        length=np.array([c.length for c in data]),
+        deflection=deflection, force=force, weight=weight, order=order,
+    )
+
+
+def unpad(batch: CurveBatch, values: np.ndarray) -> list[np.ndarray]:
+    """Per-curve arrays in each curve's original point order from padded ``[C, P, ...]``."""
+    values = np.asarray(values)
+    out = []
+    for c in range(batch.order.shape[0]):
+        keep = batch.order[c] >= 0
+        curve_values = np.empty_like(values[c][keep])
+        curve_values[batch.order[c][keep]] = values[c][keep]
+        out.append(curve_values)
+    return out
+
+
+class RigPrediction(eqx.Module):
+    """Model response at every padded point, ``[C, P]`` unless noted.
+
+    force [N] (along the drive, positive downwards); converged (bool); iterations;
+    joint_regime ``[C, P, J]`` (0 unwrinkled, 1 wrinkled, 2 collapsed; joint 0 is the
+    clamp); joint_position ``[C, P, J]``: each joint's arc-length position over the length
+    (0 at the clamp, 1 at the tip).
+    """
+
+    force: jax.Array
+    converged: jax.Array
+    iterations: jax.Array
+    joint_regime: jax.Array
+    joint_position: jax.Array
+
+
+@functools.lru_cache(maxsize=16)
+def _unit_cantilever(segments: int):
+    with jax.ensure_compile_time_eval():  # concrete arrays even when first built under jit
+        return jt.cantilever(1.0, 1.0, 1.0, segments, jt.LinearLaw(1.0), jt.LinearLaw(1.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class CantileverRig:
+    """The ``cantilever_tip`` bench as a jaxtube model with ``segments`` rigid segments.
+
+    The structure is built once at unit length, radius and pressure; :meth:`predict` sets
+    the specimen numbers per curve as parameters, so one compilation serves every curve.
+    """
+
+    segments: int = DEFAULT_SEGMENTS
+    solver: jt.NewtonKKT = jt.NewtonKKT()
+
+    def template(self):
+        """The unit cantilever (structure, parameters), built once per segment count."""
+        return _unit_cantilever(self.segments)
+
+    def specimen_parameters(self, model: TubeModel, pressure, radius, length):
+        """:class:`jaxtube.StructureParameters` of one specimen (traceable in all numbers)."""
+        _, params = self.template()
+        return eqx.tree_at(
+            lambda p: (p.node_position, p.node_radius, p.pressure, p.bending_laws,
+                       p.torsion_laws),
+            params,
+            (params.node_position * length, jnp.full_like(params.node_radius, radius),
+             jnp.full_like(params.pressure, pressure), (model.bending_law,),
+             (model.torsion_law,)),
+        )
+
+    def curve(self, model: TubeModel, pressure, radius, length, deflection) -> RigPrediction:
+        """Force along one continuation path of tip deflections ``[P]`` [m]."""
+        structure, _ = self.template()
+        params = self.specimen_parameters(model, pressure, radius, length)
+        tip = structure.node_id("tube:end")
+        path = jt.DisplacementControl(tip, DOWN, deflection)
+        sol = jt.solve_path(structure, params, path, self.solver)
+        joints = np.asarray([structure.joint_node[s] for s, spring in
+                             enumerate(structure.joint_spring) if spring])
+        position = jnp.broadcast_to(jnp.asarray(joints / self.segments, float),
+                                    sol.joint_regime.shape)
+        return RigPrediction(force=sol.control_force, converged=sol.converged,
+                             iterations=sol.iterations, joint_regime=sol.joint_regime,
+                             joint_position=position)
+
+    def predict(self, model: TubeModel, pressure, radius, length, deflection) -> RigPrediction:
+        """All curves at once: ``pressure, radius, length [C]``, ``deflection [C, P]``."""
+        return jax.vmap(lambda p, r, length_, d: self.curve(model, p, r, length_, d))(
+            jnp.asarray(pressure, float), jnp.asarray(radius, float),
+            jnp.asarray(length, float), jnp.asarray(deflection, float))
