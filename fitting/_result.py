@@ -38,7 +38,6 @@ from ._calibrate import (
     Convergence,
     FitProblem,
     forces_and_sensitivity,
-    model_forces,
     specimen_arrays,
 )
 from ._rig import unpad
@@ -67,7 +66,8 @@ class FitResult:
     Attributes:
         problem: the least-squares problem (data, rig, scaling, noise, fixed values).
         free_values: the optimum in the fitted coordinates ``[n_free]``.
-        covariance: their Laplace covariance ``[n_free, n_free]`` (pseudo-inverse).
+        covariance: their Laplace covariance ``[n_free, n_free]`` (pseudo-inverse of the
+            information: the uncertainty of what the data determine).
         free_standard_errors: ``[n_free]``; inf for coordinates the data do not determine.
         parameters: one :class:`ParameterEstimate` per reported name.
         identifiability: sentences on what the data cannot determine (empty if all is).
@@ -103,21 +103,25 @@ class FitResult:
         info = jac.T @ jac
         scale = np.sqrt(np.maximum(np.diag(info), 1e-300))
         scaled = info / np.outer(scale, scale)
-        evals, evecs = np.linalg.eigh(scaled)
-        keep = evals > 1e-10 * max(float(evals.max()), 1e-300)
-        inv_scaled = (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T
-        # Directions the data do not see: their coordinates get an infinite error.
-        null_loading = np.sum(evecs[:, ~keep] ** 2, axis=1)
-        covariance = inv_scaled / np.outer(scale, scale)
-        if not problem.noise_given:
-            covariance = covariance * residual_variance
-        se_free = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-        se_free = np.where(null_loading > 0.01, np.inf, se_free)
+        # Identification: a tiny ridge on the correlation-scaled information leaves the
+        # errors of identified coordinates as they are and gives coordinates the data do not
+        # see an error ~1e5 x their scale, which the thresholds flag.
+        factor = 1.0 if problem.noise_given else residual_variance
+        ridge = np.linalg.inv(scaled + 1e-10 * np.eye(n_free)) / np.outer(scale, scale)
+        se_free = np.sqrt(np.maximum(np.diag(ridge) * factor, 0.0))
+        thresholds = np.array([UNIDENTIFIED_SE if n.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
+                               for n in problem.free_names])
+        se_free = np.where(se_free > thresholds, np.inf, se_free)
+        # Covariance for errors and bands: the pseudo-inverse, i.e. the uncertainty of what
+        # the data determine (directions they do not see are left out, see the README).
+        covariance = np.linalg.pinv(scaled, rcond=1e-8, hermitian=True) / np.outer(scale, scale)
+        covariance = covariance * factor
         params, words = _report_parameters(problem, x, covariance, se_free)
         force = unpad(problem.batch, np.asarray(pred.force))
         regime = unpad(problem.batch, np.asarray(pred.joint_regime))
         return cls(problem=problem, free_values=np.asarray(x), covariance=covariance,
-                   free_standard_errors=se_free, parameters=tuple(params), identifiability=tuple(words),
+                   free_standard_errors=se_free, parameters=tuple(params),
+                   identifiability=tuple(words),
                    residual_variance=residual_variance, force=tuple(force),
                    joint_regime=tuple(regime),
                    joint_position=np.asarray(pred.joint_position)[0, 0],
@@ -168,25 +172,18 @@ class FitResult:
 
     def predict(self, pressure, radius, length, deflection, band: bool = True):
         """Model force [N] at tip deflections ``[C, P]`` [m] of specimens ``[C]`` (Pa, m, m),
-        and its standard deviation from the parameter covariance (delta method; zeros when
-        ``band`` is False). Raises if any equilibrium fails to converge."""
+        and its standard deviation from the parameter covariance (delta method: one JVP per
+        fitted coordinate through the solve; zeros when ``band`` is False). Directions of the
+        parameters that the data do not determine are not in the band: beyond the measured
+        range it is a lower bound. Raises if any equilibrium fails to converge."""
         deflection = np.atleast_2d(np.asarray(deflection, float))
         arrays = specimen_arrays(np.atleast_1d(pressure), np.atleast_1d(radius),
                                  np.atleast_1d(length), deflection)
+        force, sens, converged = forces_and_sensitivity(self.problem, self.free_values, arrays)
         if band:
-            force, sens, converged = forces_and_sensitivity(self.problem, self.free_values,
-                                                            arrays)
-            finite = np.where(np.isfinite(self.covariance), self.covariance, 0.0)
-            variance = np.einsum("cpi,ij,cpj->cp", sens, finite, sens)
-            unidentified = ~np.isfinite(self.standard_errors_free)
-            # A coordinate the data do not determine makes the band unbounded where the
-            # prediction depends on it.
-            reach = np.abs(sens[..., unidentified]).max(axis=-1, initial=0.0)
-            sd = np.where(reach > 1e-9 * np.maximum(np.abs(force), 1e-300), np.inf,
-                          np.sqrt(np.maximum(variance, 0.0)))
+            sd = _delta_method(sens, self.covariance)
         else:
-            force, pred = model_forces(self.problem, self.free_values, arrays)
-            converged, sd = np.asarray(pred.converged), np.zeros_like(force)
+            sd = np.zeros_like(force)
         if not np.all(converged):
             raise RuntimeError(f"prediction: {int(np.sum(~converged))} equilibrium solves did "
                                "not converge")
@@ -221,8 +218,12 @@ class FitResult:
             "parameters": [_finite_or_none(dataclasses.asdict(p)) for p in self.parameters],
             "reference": {"pressure_Pa": self.problem.reference[0],
                           "radius_m": self.problem.reference[1]},
+            "coordinates": {"names": list(self.problem.names),
+                            "values": self.vector.tolist(),
+                            "free_index": list(self.problem.free_index)},
             "fitted_coordinates": self.problem.free_names,
             "fitted_values": self.free_values.tolist(),
+            "free_standard_errors": [_finite(v) for v in self.free_standard_errors],
             "covariance": [[_finite(v) for v in row] for row in self.covariance],
             "noise_N": self.noise, "noise_given": self.problem.noise_given,
             "residual_variance": self.residual_variance,
@@ -289,48 +290,69 @@ def _report_parameters(problem: FitProblem, x, covariance, se_free):
                     grad[position[other]] = -value * lr
                     infinite |= not math.isfinite(se_free[position[other]]) and lr != 0
             se = math.inf if infinite else math.sqrt(max(grad @ covariance @ grad, 0.0))
-            identified = math.isfinite(se) and se_free[position[name]] <= UNIDENTIFIED_SE
+            identified = bool(math.isfinite(se) and se_free[position[name]] <= UNIDENTIFIED_SE)
         else:
             se = float(se_free[position[name]])
-            identified = math.isfinite(se) and se <= UNIDENTIFIED_SE_EXPONENT
+            identified = bool(math.isfinite(se) and se <= UNIDENTIFIED_SE_EXPONENT)
         if not identified:
             unidentified.add(name)
         estimates.append(ParameterEstimate(name, value, se if identified else math.inf,
                                            False, identified))
-    words += _identifiability_words(problem, unidentified, covariance, position)
+    # A pivot is unresolved when its increment at the reference specimen (log a) is not
+    # determined; an A that is unidentified only through its exponent is not.
+    unresolved = {name for name in names if name.endswith(".A") and name in position
+                  and not math.isfinite(se_free[position[name]])}
+    words += _identifiability_words(problem, unidentified, unresolved, covariance)
     return estimates, words
 
 
-def _identifiability_words(problem: FitProblem, unidentified, covariance, position):
+def _identifiability_words(problem: FitProblem, unidentified, unresolved_scales, covariance):
     data = problem.data
     scaling = problem.scaling
     words = []
-    pr3 = data.pressures() * data.radii() ** 3
+    pressure = np.array([c.pressure for c in data])
+    radius = np.array([c.radius for c in data])
+    pr3 = pressure * radius**3
     spread = float(pr3.max() / pr3.min())
-    radius_spread = float(data.radii().max() / data.radii().min())
-    pressure_spread = float(data.pressures().max() / data.pressures().min())
-    exps = sorted(n for n in unidentified if n.endswith(".B"))
+    radius_spread = float(radius.max() / radius.min())
+    pressure_spread = float(pressure.max() / pressure.min())
+    def pivot(name):
+        return int(name.split("[")[1].split("]")[0])
+
+    # A pivot whose scale is not determined: its exponents cannot be either.
+    unresolved = sorted({pivot(n) for n in unresolved_scales})
+    if unresolved:
+        regimes = sorted({scaling.regime_of_pivot(i - 1) for i in unresolved})
+        regime_names = ", ".join(("unwrinkled", "wrinkled", "collapsed")[r] for r in regimes)
+        names = sorted(n for n in unidentified if pivot(n) in unresolved)
+        words.append(
+            f"Not identified: {', '.join(names)} (pivot(s) {', '.join(map(str, unresolved))}, "
+            f"{regime_names} regime). The curves do not reach or resolve these pivots: "
+            "points further into wrinkling and along the collapse plateau, or fewer pivots "
+            "(--pivots), determine them. Predictions beyond the measured range depend on "
+            "them and carry no band there.")
+    # With little spread of p r^3 in the data no exponent can be determined, whatever the
+    # pivots; otherwise only the exponents of resolved pivots are worth a sentence.
+    narrow = spread < 1.5
+    exps = sorted(n for n in unidentified if n.endswith(".B")
+                  and (narrow or pivot(n) not in unresolved))
+    scales = sorted(n for n in unidentified if n.endswith(".A") and pivot(n) not in unresolved)
     if exps:
         words.append(
             f"Not identified: {', '.join(exps)}. B is the exponent of the scaling variable; "
             f"the data cover p r^3 from {pr3.min():.3g} to {pr3.max():.3g} N m (a ratio of "
             f"{spread:.2f}), pressures over a ratio of {pressure_spread:.2f} and radii over "
-            f"{radius_spread:.2f}. Curves at clearly different pressures or radii determine B.")
-    radius_exps = sorted(n for n in unidentified if n.endswith(".C"))
+            f"{radius_spread:.2f}. Curves at clearly different values of p r^3 (pressures or "
+            "radii) determine B."
+            + (f" The pivots themselves are determined at the reference specimen, but "
+               f"{', '.join(scales)} (A at p r^3 = 1) follow only with B." if scales else ""))
+    radius_exps = sorted(n for n in unidentified if n.endswith(".C")
+                         and pivot(n) not in unresolved)
     if radius_exps:
         words.append(
             f"Not identified: {', '.join(radius_exps)}. C is the radius exponent of the "
             f"separate form; the data's radii span a ratio of {radius_spread:.2f}. Curves "
             "at several radii determine C.")
-    scales = sorted(n for n in unidentified if n.endswith(".A"))
-    if scales:
-        regimes = sorted({scaling.regime_of_pivot(int(n.split("[")[1].split("]")[0]) - 1)
-                          for n in scales})
-        regime_names = ", ".join(("unwrinkled", "wrinkled", "collapsed")[r] for r in regimes)
-        words.append(
-            f"Not identified: {', '.join(scales)} (pivots of the {regime_names} regime). "
-            "The curves do not constrain these pivots separately: points further along the "
-            "collapse plateau, or fewer pivots (--pivots), determine them.")
     # Strongly correlated identified pairs.
     free = problem.free_names
     sd = np.sqrt(np.maximum(np.diag(covariance), 1e-300))
@@ -346,6 +368,43 @@ def _identifiability_words(problem: FitProblem, unidentified, covariance, positi
         words.append("Strongly correlated (the data determine their combination better than "
                      "each): " + "; ".join(pairs[:8]) + ("; ..." if len(pairs) > 8 else "") + ".")
     return words
+
+
+def predict_from_document(document: dict, pressure: float, radius: float, length: float,
+                          deflection) -> tuple[np.ndarray, np.ndarray]:
+    """Cantilever force [N] and its delta-method standard deviation at tip deflections
+    ``[P]`` [m], from a parameters file's contents (its law, coordinates and covariance)."""
+    from ._calibrate import FitProblem, forces_and_sensitivity
+    from ._rig import CantileverRig
+
+    law = document["law"]
+    scaling = PivotScaling(form=law["form"], pivots_per_regime=tuple(law["pivots_per_regime"]),
+                           residual_stiffness_ratio=float(law["residual_stiffness_ratio"]))
+    coordinates = document["coordinates"]
+    free_index = tuple(int(i) for i in coordinates["free_index"])
+    n_free = len(free_index)
+    reference = (float(document["reference"]["pressure_Pa"]),
+                 float(document["reference"]["radius_m"]))
+    problem = FitProblem(
+        data=None, batch=None, rig=CantileverRig(segments=int(document["segments"])),
+        scaling=scaling, reference=reference, names=tuple(coordinates["names"]),
+        free_index=free_index, base=np.asarray(coordinates["values"], float),
+        lower=None, upper=None, prior_mean=np.zeros(n_free), prior_sd=np.full(n_free, np.inf),
+        noise=float(document["noise_N"]), noise_given=True)
+    values = problem.base[np.asarray(free_index)]
+    arrays = specimen_arrays([pressure], [radius], [length], np.asarray(deflection)[None])
+    force, sens, converged = forces_and_sensitivity(problem, values, arrays)
+    if not np.all(converged):
+        raise RuntimeError(f"prediction: {int(np.sum(~converged))} equilibrium solves did not "
+                           "converge")
+    covariance = np.array(document["covariance"], float)
+    return force[0], _delta_method(sens, covariance)[0]
+
+
+def _delta_method(sensitivity, covariance) -> np.ndarray:
+    """Standard deviation of the force, ``sqrt(g^T Cov g)`` per point (``g = dF/dtheta``)."""
+    variance = np.einsum("cpi,ij,cpj->cp", sensitivity, covariance, sensitivity)
+    return np.sqrt(np.maximum(variance, 0.0))
 
 
 def load_law(path) -> jt.SplineLaw:

@@ -49,7 +49,7 @@ class PivotScaling:
     """
 
     form: str = "paper"
-    pivots_per_regime: tuple[int, int, int] = (2, 2, 1)
+    pivots_per_regime: tuple[int, int, int] = (1, 1, 1)
     residual_stiffness_ratio: float = 0.01
 
     def __post_init__(self):

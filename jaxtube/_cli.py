@@ -46,6 +46,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import numpy as np
 
@@ -68,13 +69,25 @@ CSV_COLUMNS = (
 # ------------------------------------------------------------------------------------------
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """argparse type: an integer > 0."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
     return value
 
 
@@ -87,14 +100,29 @@ def _add_simulate(subparsers) -> None:
     parser.add_argument("--out", type=Path, required=True,
                         help="output directory (created; existing files of the same names "
                              "are replaced, other files are left alone)")
-    parser.add_argument("--steps", type=_positive_int, default=None,
+    parser.add_argument("--steps", type=positive_int, default=None,
                         help="number of load steps (overrides [path].steps)")
+    parser.add_argument("--params", type=Path, default=None,
+                        help="parameters.json of 'jaxtube fit': its fitted bending law replaces "
+                             "the bending law of every tube")
     parser.add_argument("--quiet", action="store_true",
                         help="print only problems (failed steps, errors)")
     parser.set_defaults(run=_simulate)
 
 
-_SUBCOMMANDS = (_add_simulate,)
+def _add_fit(subparsers) -> None:
+    from fitting._commands import add_fit
+
+    add_fit(subparsers)
+
+
+def _add_predict(subparsers) -> None:
+    from fitting._commands import add_predict
+
+    add_predict(subparsers)
+
+
+_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -154,6 +182,18 @@ def _simulate(args) -> int:
         report.problem(f"error: invalid spec\n{error}")
         return 2
     structure, params, path, meta = spec
+    if args.params is not None:
+        from fitting import load_law
+
+        try:
+            law = load_law(args.params)
+        except ValueError as error:
+            report.problem(f"error: {error}")
+            return 2
+        params = eqx.tree_at(lambda p: p.bending_laws, params,
+                             tuple(law for _ in params.bending_laws))
+        spec = spec._replace(params=params)
+        report.progress(f"bending law of every tube from {args.params}")
     joint_node = _joint_nodes(spec)
     target = (f"to {meta.path_values[-1] * 1e3:g} mm" if meta.control == "displacement"
               else f"to load factor {meta.path_values[-1]:g}")
@@ -373,22 +413,35 @@ def _write_csv(path: Path, table) -> None:
 
 
 def write_outputs(out: Path, table, figures: dict, summary: dict, started: float) -> None:
-    """Write the outputs atomically: into a temporary directory next to ``out``, then
-    renamed to ``out`` (or, if ``out`` exists, each file moved over its namesake). A
-    failure leaves ``out`` as it was."""
+    """Write the outputs of ``simulate`` atomically (see :func:`write_directory`)."""
+
+    def write_summary(path):
+        data = dict(summary)
+        data["wall_time_s"] = dict(data["wall_time_s"],
+                                   total_s=round(time.perf_counter() - started, 3))
+        with open(path, "w") as file:
+            json.dump(data, file, indent=2, allow_nan=False)
+            file.write("\n")
+
+    writers = {"path.csv": lambda path: _write_csv(path, table)}
+    for name, figure in figures.items():
+        writers[name] = lambda path, figure=figure: figure.savefig(path, dpi=120)
+    writers["summary.json"] = write_summary
+    write_directory(out, writers)
+
+
+def write_directory(out: Path, writers: dict) -> None:
+    """Write files atomically: each ``writers[name](path)`` writes into a temporary directory
+    next to ``out``, which is then renamed to ``out`` (or, if ``out`` exists, each file is
+    moved over its namesake). A failure leaves ``out`` as it was: nothing half-written."""
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"--out {out} exists and is not a directory")
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
-        _write_csv(staging / "path.csv", table)
-        for name, figure in figures.items():
-            figure.savefig(staging / name, dpi=120)
-        summary = dict(summary)
-        summary["wall_time_s"] = dict(summary["wall_time_s"],
-                                      total_s=round(time.perf_counter() - started, 3))
-        with open(staging / "summary.json", "w") as file:
-            json.dump(summary, file, indent=2, allow_nan=False)
-            file.write("\n")
+        for name, write in writers.items():
+            write(staging / name)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(staging, 0o777 & ~umask)

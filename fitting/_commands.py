@@ -1,0 +1,234 @@
+"""``jaxtube fit`` and ``jaxtube predict`` (registered by :mod:`jaxtube._cli`).
+
+``jaxtube fit DATA.csv --out DIR``: fit the bending law's pivot scaling to every curve of
+the measurement file (format in :mod:`fitting._data`), print the parameter table with
+standard errors, identifiability notes and per-curve / overall RMSE, and write into DIR:
+
+- ``parameters.json``: the fitted law and its uncertainty (format in
+  :mod:`fitting._result`); ``jaxtube simulate --params`` and ``jaxtube predict`` load it;
+- ``fit.png``: fitted against measured curves with 95 % bands, and residuals;
+- ``curves.csv``: ``curve,deflection_mm,force_N,model_force_N,residual_N,worst_regime``.
+
+``jaxtube predict --params parameters.json --pressure-bar P --radius-m R --length-m L
+--max-deflection-mm U --out DIR``: the fitted model's cantilever curve at any specimen, with
+its 95 % band, as ``prediction.csv`` and ``prediction.png``.
+
+Exit codes: 0 success; 1 the fit ran but did not converge (outputs written and marked);
+2 bad input (nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jaxtube._cli import positive_float, positive_int, write_directory
+
+from ._calibrate import FitError, FitOptions, Prior, fit
+from ._data import DataError, load_measurements
+from ._result import Z_95, load_law
+from ._scaling import FORMS, PivotScaling
+
+
+def _pivots(text: str) -> tuple[int, int, int]:
+    try:
+        counts = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        counts = ()
+    if len(counts) != 3 or min(counts) < 1:
+        raise argparse.ArgumentTypeError(
+            f"expected three positive integers like 2,2,1 (unwrinkled, wrinkled, collapsed "
+            f"pivots), found {text!r}")
+    return counts
+
+
+def _assignment(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE like M[1].B=1.0, found {text!r}")
+
+
+def _prior(text: str) -> tuple[str, Prior]:
+    name, sep, value = text.partition("=")
+    mean, _, sd = value.partition("+-")
+    try:
+        return name.strip(), Prior(float(mean), float(sd))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=MEAN+-SD like kappa[1].B=1.0+-0.2, found {text!r}")
+
+
+def add_fit(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fit", help="fit the bending law's scaling factors A, B to measured curves",
+        description="Fit the pivot scaling of the three-regime spline law to every measured "
+                    "force-deflection curve at once (Levenberg-Marquardt through the "
+                    "equilibrium solver), with standard errors and 95 % bands.")
+    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
+                                                "radius_m,length_m,deflection_mm,force_N)")
+    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument("--form", choices=FORMS, default="paper",
+                        help="pivot scaling: paper A (p r^3)^B, or separate A p^B r^C")
+    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+                        help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
+    parser.add_argument("--segments", type=positive_int, default=None,
+                        help="rigid segments of the model tube (default 12)")
+    parser.add_argument("--noise-N", type=positive_float, default=None,
+                        help="force noise standard deviation [N] (default: estimated)")
+    parser.add_argument("--fix", type=_assignment, action="append", default=[],
+                        metavar="NAME=VALUE", help="hold a parameter fixed (repeatable)")
+    parser.add_argument("--prior", type=_prior, action="append", default=[],
+                        metavar="NAME=MEAN+-SD", help="Gaussian prior (repeatable; on log A "
+                                                      "for A, sd relative)")
+    parser.add_argument("--robust", action="store_true", help="Huber loss (outliers)")
+    parser.add_argument("--multistart", type=positive_int, default=1,
+                        help="number of starts (default 1: the physics-based guess)")
+    parser.add_argument("--max-iterations", type=positive_int, default=60)
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run_fit)
+
+
+def add_predict(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "predict", help="the fitted model's cantilever curve at any pressure, radius, length",
+        description="Predict the tip force-deflection curve of a cantilever with a fitted "
+                    "law (parameters.json of 'jaxtube fit'), with its 95 %% band.")
+    parser.add_argument("--params", type=Path, required=True, help="parameters.json")
+    parser.add_argument("--pressure-bar", type=positive_float, required=True)
+    parser.add_argument("--radius-m", type=positive_float, required=True)
+    parser.add_argument("--length-m", type=positive_float, required=True)
+    parser.add_argument("--max-deflection-mm", type=positive_float, required=True)
+    parser.add_argument("--points", type=positive_int, default=25)
+    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.set_defaults(run=run_predict)
+
+
+def _bad_out(out: Path) -> bool:
+    if out.exists() and not out.is_dir():
+        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
+        return True
+    return False
+
+
+def run_fit(args) -> int:
+    started = time.perf_counter()
+    if _bad_out(args.out):
+        return 2
+    try:
+        data = load_measurements(args.data)
+    except DataError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    from ._rig import DEFAULT_SEGMENTS, CantileverRig
+
+    try:
+        scaling = PivotScaling(form=args.form, pivots_per_regime=args.pivots)
+        options = FitOptions(noise_N=args.noise_N, fixed=dict(args.fix),
+                             priors=dict(args.prior), loss="huber" if args.robust else "linear",
+                             multistart=args.multistart, max_iterations=args.max_iterations,
+                             progress=not args.quiet)
+        rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
+        print(f"fitting {len(data)} curves ({data.point_count} points) from {args.data}; "
+              f"{args.form} scaling, pivots {','.join(map(str, args.pivots))}; compiling the "
+              "model (the first evaluation takes a while) ...", file=sys.stderr, flush=True)
+        result = fit(data, scaling, rig, options)
+    except (ValueError, FitError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    from ._figures import fit_figure
+
+    figure = fit_figure(result)
+    document = result.to_json()
+    document["wall_time_s"] = round(time.perf_counter() - started, 3)
+
+    def write_json(path):
+        path.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n")
+
+    def write_curves(path):
+        with open(path, "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["curve", "deflection_mm", "force_N", "model_force_N", "residual_N",
+                             "worst_regime"])
+            for curve, force, regime in zip(data, result.force, result.joint_regime):
+                worst = regime.max(axis=-1)
+                for u, f, m, w in zip(curve.deflection, curve.force, force, worst):
+                    writer.writerow([curve.name, f"{u * 1e3:.6g}", f"{f:.6g}", f"{m:.6g}",
+                                     f"{m - f:.6g}", int(w)])
+
+    write_directory(args.out, {"parameters.json": write_json, "curves.csv": write_curves,
+                               "fit.png": lambda path: figure.savefig(path, dpi=120)})
+    print(fit_report(result))
+    print(f"wrote parameters.json, curves.csv, fit.png to {args.out}")
+    return 0 if result.convergence.converged else 1
+
+
+def fit_report(result) -> str:
+    """Parameter table, identifiability notes, errors per curve and the optimiser's report."""
+    lines = [result.table(), ""]
+    for sentence in result.identifiability:
+        lines.append("note: " + sentence)
+    lines.append("")
+    lines.append(f"{'curve':<16}{'RMSE [N]':>10}{'max |err| [N]':>15}{'bias [N]':>10}")
+    for row in result.curve_errors():
+        lines.append(f"{row['curve']:<16}{row['rmse_N']:>10.4g}{row['max_error_N']:>15.4g}"
+                     f"{row['bias_N']:>10.4g}")
+    lines.append(f"{'overall':<16}{result.rmse:>10.4g}")
+    source = "given" if result.problem.noise_given else "estimated from the data"
+    lines.append(f"noise {result.noise:.4g} N ({source}); residual variance / noise variance "
+                 f"{result.residual_variance:.3g}")
+    c = result.convergence
+    lines.append(f"optimiser: {'converged' if c.converged else 'NOT CONVERGED'} ({c.message}); "
+                 f"{c.iterations} iterations, {c.evaluations} evaluations, {c.solver_calls} "
+                 f"curve solves, {c.seconds:.1f} s")
+    return "\n".join(lines)
+
+
+def run_predict(args) -> int:
+    if _bad_out(args.out):
+        return 2
+    try:
+        load_law(args.params)  # validates the file with clear errors
+        document = json.loads(Path(args.params).read_text())
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    from ._figures import prediction_figure
+    from ._result import predict_from_document
+
+    deflection = np.linspace(args.max_deflection_mm / args.points, args.max_deflection_mm,
+                             args.points) * 1e-3
+    pressure, radius, length = args.pressure_bar * 1e5, args.radius_m, args.length_m
+    try:
+        force, sd = predict_from_document(document, pressure, radius, length, deflection)
+    except (ValueError, KeyError) as error:
+        print(f"error: {args.params}: {error}", file=sys.stderr)
+        return 2
+    except RuntimeError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    label = (f"{args.pressure_bar:g} bar, r = {args.radius_m * 1e3:g} mm, "
+             f"L = {args.length_m:g} m ({args.params})")
+    figure = prediction_figure(deflection * 1e3, force, sd, label)
+
+    def write_csv(path):
+        with open(path, "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["deflection_mm", "force_N", "force_low_N", "force_high_N"])
+            for u, f, s in zip(deflection, force, sd):
+                writer.writerow([f"{u * 1e3:.6g}", f"{f:.6g}", f"{f - Z_95 * s:.6g}",
+                                 f"{f + Z_95 * s:.6g}"])
+
+    write_directory(args.out, {"prediction.csv": write_csv,
+                               "prediction.png": lambda path: figure.savefig(path, dpi=120)})
+    print(f"predicted {args.points} points up to {args.max_deflection_mm:g} mm: force "
+          f"{force[-1]:.4g} N +- {Z_95 * sd[-1]:.3g} N (95 %) at the largest deflection; "
+          f"wrote prediction.csv, prediction.png to {args.out}")
+    return 0

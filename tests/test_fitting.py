@@ -1,0 +1,190 @@
+"""Calibration (issue 3): parameter recovery, held-out prediction, loss gradient through the
+implicit solve, the CLI and its bad-input behaviour.
+
+Data: ``tests/data/calibration_spline.csv``, made by ``experiments/make_calibration_data.py``
+with the continuum shooting solver of ``fitting.continuum`` (an independent formulation and
+solver) from a known paper-form spline law; see ``tests/data/README.md``.
+"""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import fitting as ft
+from fitting import _calibrate
+from jaxtube._cli import main
+
+DATA = Path(__file__).parent / "data" / "calibration_spline.csv"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location(
+        "make_calibration_data", ROOT / "experiments" / "make_calibration_data.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def data():
+    return ft.load_measurements(DATA)
+
+
+@pytest.fixture(scope="module")
+def result(data):
+    return ft.fit(data, options=ft.FitOptions(progress=False))
+
+
+def test_recovers_known_scaling_factors_within_uncertainty(data, result):
+    """Every identified A and B of the true law lies within 3 reported standard errors; the
+    unwrinkled-regime pivot (which every curve passes) is identified, and the pivots the
+    data do not resolve (the curves stop at 85 % of the collapse load) are flagged."""
+    assert result.convergence.converged, result.convergence.message
+    truth = ft.PivotScaling().physical(
+        ft.PivotScaling().vector(_generator().true_law(), *result.problem.reference),
+        *result.problem.reference)
+    identified = 0
+    for estimate in result.parameters:
+        if not estimate.identified:
+            continue
+        identified += 1
+        z = abs(estimate.value - truth[estimate.name]) / estimate.standard_error
+        assert z < 3.0, (estimate, truth[estimate.name])
+    for name in ("kappa[1].A", "kappa[1].B", "M[1].A", "M[1].B"):
+        assert result.parameter(name).identified, (name, result.identifiability)
+    assert identified >= 4
+    assert not result.parameter("kappa[3].B").identified  # the collapsed regime: no data
+    assert any("pivot(s)" in sentence for sentence in result.identifiability)
+    # The fit reaches the noise: residual variance per noise variance near 1.
+    assert result.rmse < 1.3 * result.noise
+    assert 0.5 < result.residual_variance < 1.6
+
+
+def test_band_covers_the_truth_and_is_narrow_where_data_are(data, result):
+    batch = result.problem.batch
+    force, sd = result.predict(batch.pressure, batch.radius, batch.length, batch.deflection)
+    assert np.all(np.isfinite(sd[batch.mask])) and np.all(sd[batch.mask] > 0)
+    assert np.median(sd[batch.mask]) < result.noise  # the band is narrower than the noise
+
+
+def test_held_out_pressure_is_predicted_within_twice_the_noise(data):
+    """Fit the 0.15 and 0.35 bar curves; predict the 0.25 bar curves."""
+    held_out = [c for c in data if abs(c.pressure - 0.25e5) < 1.0]
+    names = {c.name for c in held_out}
+    training = ft.MeasuredData(tuple(c for c in data if c.name not in names), source="training")
+    assert len(held_out) == 2 and len(training) == 4
+    fitted = ft.fit(training, options=ft.FitOptions(progress=False))
+    noise = fitted.noise
+    errors = []
+    for curve in held_out:
+        force, _ = fitted.predict([curve.pressure], [curve.radius], [curve.length],
+                                  curve.deflection[None], band=False)
+        errors.append(force[0] - curve.force)
+    rmse = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+    assert rmse < 2.0 * noise, (rmse, noise)
+
+
+def test_loss_gradient_through_implicit_solve_matches_finite_differences(result):
+    """d(loss)/d(theta) = J^T r from forward-mode derivatives through the equilibrium
+    (implicit function theorem) equals central finite differences of the loss."""
+    problem = result.problem
+    x = np.asarray(result.free_values) + 0.05  # away from the optimum: a non-zero gradient
+    args = problem.residual_args()
+
+    def loss(values):
+        r, _, _ = _calibrate._residuals_and_jacobian(jnp.asarray(values), *args,
+                                                     **problem.static())
+        return 0.5 * float(np.sum(np.asarray(r) ** 2))
+
+    r, jac, _ = _calibrate._residuals_and_jacobian(jnp.asarray(x), *args, **problem.static())
+    gradient = np.asarray(jac).T @ np.asarray(r)
+    names = problem.free_names
+    for name in ("kappa[1].A", "M[1].B", "M[2].A"):
+        i = names.index(name)
+        step = 1e-5
+        plus, minus = x.copy(), x.copy()
+        plus[i] += step
+        minus[i] -= step
+        numeric = (loss(plus) - loss(minus)) / (2 * step)
+        assert numeric == pytest.approx(gradient[i], rel=2e-5, abs=1e-6 * abs(gradient).max())
+
+
+def test_unidentifiable_exponent_is_flagged_in_words(data):
+    """A curve at one radius and one pressure cannot determine B: the fit says so in
+    words, naming the spread of p r^3 in the data."""
+    single = ft.MeasuredData(tuple(c for c in data if c.name == "p0.25-r90"), source="single")
+    fitted = ft.fit(single, options=ft.FitOptions(progress=False, max_iterations=15))
+    for name in ("kappa[1].B", "M[1].B"):
+        assert not fitted.parameter(name).identified
+    sentence = next(s for s in fitted.identifiability if "determine B" in s)
+    assert "pressures or radii" in sentence
+    assert "M[1].B" in sentence and "ratio of 1.00" in sentence
+
+
+def test_fit_cli_writes_parameters_that_simulate_and_predict_load(data, tmp_path, capsys):
+    out = tmp_path / "fit"
+    code = main(["fit", str(DATA), "--out", str(out), "--quiet"])
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert {"parameters.json", "fit.png", "curves.csv"} <= {p.name for p in out.iterdir()}
+    assert "kappa[1].A" in printed and "overall" in printed and "RMSE" in printed
+    document = json.loads((out / "parameters.json").read_text())
+    law = ft.load_law(out / "parameters.json")
+    assert document["rmse_N"] < 1.3 * document["noise_N"]
+    np.testing.assert_allclose(np.asarray(law.moment_exponent),
+                               document["law"]["moment_exponent"])
+
+    predicted = tmp_path / "predict"
+    code = main(["predict", "--params", str(out / "parameters.json"), "--pressure-bar", "0.3",
+                 "--radius-m", "0.075", "--length-m", "1.0", "--max-deflection-mm", "30",
+                 "--points", "12", "--out", str(predicted)])
+    assert code == 0
+    rows = (predicted / "prediction.csv").read_text().splitlines()
+    assert rows[0] == "deflection_mm,force_N,force_low_N,force_high_N" and len(rows) == 13
+    _, force, low, high = (float(v) for v in rows[-1].split(","))
+    assert 0 < low < force < high
+
+
+@pytest.mark.parametrize("case", ["missing column", "out is a file", "unknown parameter",
+                                  "bad prior"])
+def test_fit_cli_bad_input_is_a_clear_error_and_writes_nothing(tmp_path, capsys, case):
+    out = tmp_path / "out"
+    data = DATA
+    extra = []
+    if case == "missing column":
+        data = tmp_path / "bad.csv"
+        lines = DATA.read_text().splitlines()
+        data.write_text("\n".join(",".join(line.split(",")[:-1]) for line in lines) + "\n")
+    elif case == "out is a file":
+        out.write_text("not a directory")
+    elif case == "unknown parameter":
+        extra = ["--fix", "kappa[9].B=1.0"]
+    else:
+        extra = ["--prior", "M[1].B=1.0"]
+    with pytest.raises(SystemExit) if case == "bad prior" else _no_raise():
+        code = main(["fit", str(data), "--out", str(out), "--quiet", *extra])
+        assert code == 2
+    err = capsys.readouterr().err
+    assert "error" in err
+    if case == "missing column":
+        assert "bad.csv" in err and "force" in err
+    if case == "unknown parameter":
+        assert "kappa[9].B" in err
+    if case == "out is a file":
+        assert out.read_text() == "not a directory"
+    else:
+        assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".partial")]
+
+
+class _no_raise:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
