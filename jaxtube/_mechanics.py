@@ -222,11 +222,15 @@ class Configuration(eqx.Module):
 
 
 def initial_state(structure: Structure, params: StructureParameters) -> dict:
-    """The undeformed state: zero segment rotations, root at its reference position."""
-    return {
+    """The undeformed state: zero segment rotations (and shear strains), root at its
+    reference position."""
+    state = {
         "root_position": params.node_position[structure.root_node],
         "segment_rotation": jnp.zeros((structure.segment_count, 3)),
     }
+    if structure.shear:
+        state["segment_shear"] = jnp.zeros((structure.segment_count, 2))
+    return state
 
 
 def _position_sum_matrix(structure: Structure) -> np.ndarray:
@@ -242,11 +246,40 @@ def _position_sum_matrix(structure: Structure) -> np.ndarray:
     return matrix
 
 
+def segment_vector(geometry: ReferenceGeometry, state: dict) -> Array:
+    """Start -> end of each segment in its material frame ``[S, 3]`` [m]: ``e_s`` plus, with
+    shear, ``L_s (gamma_1, gamma_2, 0)`` (Timoshenko kinematics: the section turns with
+    ``Q_s``, the axis shears by ``gamma``)."""
+    if "segment_shear" not in state:
+        return geometry.end_vector
+    gamma = state["segment_shear"]
+    transverse = jnp.concatenate([gamma, jnp.zeros_like(gamma[:, :1])], axis=1)
+    return geometry.end_vector + geometry.length[:, None] * transverse
+
+
 def segment_steps(geometry: ReferenceGeometry, state: dict) -> tuple[Array, Array]:
     """Deformed frames ``Q_s = Q_s0 exp(phi_s)`` ``[S, 3, 3]`` and the world vectors from each
     segment's kinematic start to its end ``[S, 3]`` [m]."""
     frame = matmul3(geometry.frame, rotation_matrix(state["segment_rotation"]))
-    return frame, matvec3(frame, geometry.end_vector)
+    return frame, matvec3(frame, segment_vector(geometry, state))
+
+
+def shear_stiffness(structure: Structure, params: StructureParameters) -> Array:
+    """Fichter section shear stiffness of each segment ``S = p pi r^2 + r / u`` [N], ``[S]``
+    (``r`` the segment's mean radius, ``u`` its tube's shear flexibility)."""
+    a = np.array([n[0] for n in structure.segment_nodes], dtype=np.int32)
+    b = np.array([n[1] for n in structure.segment_nodes], dtype=np.int32)
+    tube = np.array(structure.segment_tube, dtype=np.int32)
+    radius = 0.5 * (params.node_radius[a] + params.node_radius[b])
+    return params.pressure[tube] * jnp.pi * radius**2 + radius / params.shear_flexibility[tube]
+
+
+def shear_energy(structure: Structure, geometry: ReferenceGeometry, params, state) -> Array:
+    """``sum_s S_s L_s |gamma_s|^2 / 2`` [J] (zero without shear)."""
+    if "segment_shear" not in state:
+        return jnp.zeros(())
+    stiffness = shear_stiffness(structure, params)
+    return 0.5 * jnp.sum(stiffness * geometry.length * jnp.sum(state["segment_shear"] ** 2, -1))
 
 
 def positions_from_steps(structure: Structure, root_position: Array, step: Array):

@@ -33,6 +33,8 @@ from ._mechanics import (
     reference_geometry,
     relative_joint_rotation,
     segment_steps,
+    shear_energy,
+    shear_stiffness,
     spring_joint_topology,
     spring_joints,
     strain_energy,
@@ -126,8 +128,8 @@ def total_energy(structure: Structure, params, geometry: ReferenceGeometry, stat
 
 def _energy_of(structure, params, geometry, config, state) -> Array:
     joints = spring_joints(structure, geometry, state)
-    return strain_energy(joints, params) + load_potential(structure, geometry, config, params,
-                                                          state)
+    return (strain_energy(joints, params) + shear_energy(structure, geometry, params, state)
+            + load_potential(structure, geometry, config, params, state))
 
 
 def _constraints(structure, config, state, params, control) -> Array:
@@ -154,7 +156,8 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     Node positions are ``root + sum_s Q_s0 exp(phi_s) e_s`` and every load potential and
     constraint is linear in the root position and the segment vectors ``step_s``, so with
     ``g_s = dL/dstep_s`` (one reverse pass) the position part contributes a 3 x 3 block
-    ``d^2/dphi_s^2 [g_s . Q_s0 exp(phi_s) e_s]`` per segment; each spring joint contributes a
+    ``d^2/dphi_s^2 [g_s . Q_s0 exp(phi_s) e_s]`` per segment (5 x 5 over ``(phi_s,
+    gamma_s)`` with shear, whose energy is per segment too); each spring joint contributes a
     6 x 6 block over the rotations of its two segments; torques are linear in ``phi``. The
     blocks come from ``jax.hessian`` of these small element functions, vmapped, and are
     scatter-added at static indices. Cost grows linearly with the segment count (the
@@ -174,18 +177,34 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     step_force = jax.grad(linear_part)(step)
     body_force = matvec3(transpose3(geometry.frame), step_force)
 
-    def segment_term(phi_s, force_s, end_s):
-        return force_s @ (rotation_matrix(phi_s) @ end_s)
-
-    segment_blocks = jax.vmap(jax.hessian(segment_term))(phi, body_force, geometry.end_vector)
-
     leaves, treedef = jax.tree_util.tree_flatten(state)  # the order of ravel_pytree
     offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
     index = treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
                                for o, leaf in zip(offsets, leaves)])
     rotation_index = index["segment_rotation"]  # [S, 3] positions in the flat state
-    rows = [np.broadcast_to(rotation_index[:, :, None], segment_blocks.shape)]
-    cols = [np.broadcast_to(rotation_index[:, None, :], segment_blocks.shape)]
+
+    if "segment_shear" in state:
+        # Element of segment s over (phi_s, gamma_s): position term plus shear energy.
+        stiffness = shear_stiffness(structure, params) * geometry.length
+
+        def segment_term(dofs, force_s, end_s, length_s, stiffness_s):
+            vector = end_s + length_s * jnp.concatenate([dofs[3:], jnp.zeros(1)])
+            return (force_s @ (rotation_matrix(dofs[:3]) @ vector)
+                    + 0.5 * stiffness_s * jnp.sum(dofs[3:] ** 2))
+
+        dofs = jnp.concatenate([phi, state["segment_shear"]], axis=1)
+        segment_blocks = jax.vmap(jax.hessian(segment_term))(
+            dofs, body_force, geometry.end_vector, geometry.length, stiffness)
+        segment_index = np.concatenate([rotation_index, index["segment_shear"]], axis=1)
+    else:
+        def segment_term(phi_s, force_s, end_s):
+            return force_s @ (rotation_matrix(phi_s) @ end_s)
+
+        segment_blocks = jax.vmap(jax.hessian(segment_term))(phi, body_force,
+                                                             geometry.end_vector)
+        segment_index = rotation_index
+    rows = [np.broadcast_to(segment_index[:, :, None], segment_blocks.shape)]
+    cols = [np.broadcast_to(segment_index[:, None, :], segment_blocks.shape)]
     values = [segment_blocks]
 
     parent, child, nodes, law, _ = spring_joint_topology(structure)

@@ -62,6 +62,11 @@ class Tube(eqx.Module):
             a torsion law whenever torsion matters).
         mass_per_length: tube mass per unit length [kg/m] (self-weight).
         line_load: uniform dead line load along the tube, world frame, shape ``[3]`` [N/m].
+        shear_flexibility: ``None`` (rigid in shear, the default) or ``u = 1 / (2 pi k G t)``
+            [m/N] > 0: Fichter-type shear deformation with the section shear stiffness
+            ``S = p pi r^2 + k G A = p pi r^2 + r / u`` [N] (``A = 2 pi r t``; Fichter 1966,
+            Le van & Wielgosz 2005; PHYSICS.md section 2). Every segment then gets a
+            transverse shear strain ``gamma [2]`` with energy ``S L |gamma|^2 / 2``.
     """
 
     name: str = eqx.field(static=True)
@@ -72,6 +77,7 @@ class Tube(eqx.Module):
     torsion_law: AbstractMomentLaw
     mass_per_length: Array
     line_load: Array
+    shear_flexibility: Array | None
 
     def __init__(
         self,
@@ -83,6 +89,7 @@ class Tube(eqx.Module):
         torsion_law: AbstractMomentLaw | None = None,
         mass_per_length=0.0,
         line_load=(0.0, 0.0, 0.0),
+        shear_flexibility=None,
     ):
         self.name = str(name)
         self.nodes = jnp.asarray(nodes, dtype=float)
@@ -95,6 +102,8 @@ class Tube(eqx.Module):
         self.torsion_law = torsion_law if torsion_law is not None else bending_law
         self.mass_per_length = jnp.asarray(mass_per_length, dtype=float)
         self.line_load = jnp.asarray(line_load, dtype=float)
+        self.shear_flexibility = (None if shear_flexibility is None
+                                  else jnp.asarray(shear_flexibility, dtype=float))
 
     @property
     def n_segments(self) -> int:
@@ -208,6 +217,7 @@ class Structure(eqx.Module):
     supports: tuple[tuple[int, str], ...] = eqx.field(static=True)  # (node, kind); first = root
     closures: tuple[tuple[int, int], ...] = eqx.field(static=True)  # (segment, node) pairs
     torque_nodes: tuple[int, ...] = eqx.field(static=True)  # nodes that can carry a torque
+    shear: bool = eqx.field(static=True, default=False)  # segments carry shear strains
 
     @property
     def segment_count(self) -> int:
@@ -228,6 +238,8 @@ class StructureParameters(eqx.Module):
         pressure: envelope overpressure of each tube, shape ``[T]`` [Pa].
         bending_laws, torsion_laws: one law per tube.
         mass_per_length: per tube [kg/m]. line_load: per tube, ``[T, 3]`` [N/m].
+        shear_flexibility: per tube ``u = 1 / (2 pi k G t)`` [m/N] (see :class:`Tube`);
+            zeros and unused when ``Structure.shear`` is False.
         node_force: dead point forces, ``[N, 3]`` [N].
         node_torque: torques at ``Structure.torque_nodes``, ``[n_torque_nodes, 3]`` [N m].
             Which nodes can carry a torque is topology (decided when the structure is
@@ -245,6 +257,7 @@ class StructureParameters(eqx.Module):
     node_force: Array
     node_torque: Array
     gravity: Array
+    shear_flexibility: Array
 
 
 def _parse_node_ref(ref) -> tuple[str, int]:
@@ -493,7 +506,13 @@ def build_structure(
     for n in torque_nodes:
         if structure.node_segment[n] < 0:
             raise ValueError(f"node {n} is the root support: a torque there does no work")
-    structure = dataclasses.replace(structure, torque_nodes=tuple(torque_nodes))
+    with_shear = [t.shear_flexibility is not None for t in tubes]
+    if any(with_shear) and not all(with_shear):
+        missing = [t.name for t in tubes if t.shear_flexibility is None]
+        raise ValueError("shear deformation must be given for every tube or for none (tubes "
+                         f"without shear_flexibility: {missing})")
+    structure = dataclasses.replace(structure, torque_nodes=tuple(torque_nodes),
+                                    shear=all(with_shear))
     torque = torque[np.array(torque_nodes, dtype=np.int32)] if torque_nodes else jnp.zeros((0, 3))
     params = StructureParameters(
         node_position=jnp.asarray(position),
@@ -506,6 +525,8 @@ def build_structure(
         node_force=force,
         node_torque=torque,
         gravity=jnp.asarray(gravity, dtype=float),
+        shear_flexibility=jnp.stack([jnp.asarray(0.0) if t.shear_flexibility is None
+                                     else t.shear_flexibility for t in tubes]),
     )
     return structure, params
 
@@ -535,6 +556,7 @@ def cantilever(
     origin=(0.0, 0.0, 0.0),
     mass_per_length: float = 0.0,
     name: str = "tube",
+    shear_flexibility=None,
 ) -> tuple[Structure, StructureParameters]:
     """A straight tube clamped at its start: the standard bench test of PHYSICS.md.
 
@@ -546,6 +568,6 @@ def cantilever(
     tube = straight_tube(
         name, origin, origin + length * direction, segments, radius, pressure, bending_law,
         torsion_law=torsion_law,
-        mass_per_length=mass_per_length,
+        mass_per_length=mass_per_length, shear_flexibility=shear_flexibility,
     )
     return build_structure([tube], [Support(f"{name}:0", "clamped")])

@@ -166,3 +166,28 @@ def test_45_degree_bend():
     displacement = np.asarray(sol.node_position[-1, tip] - params.node_position[tip])
     reference = np.array([47.2, 15.9, 53.4]) - np.array([70.71068, 29.28932, 0.0])
     assert np.linalg.norm(displacement - reference) / np.linalg.norm(reference) < 0.02
+
+
+def test_fichter_shear_cantilever_small_and_large_deflection():
+    """Shear deformation (Fichter 1966; PHYSICS.md section 2): the small tip deflection is
+    ``P L^3 / (3 EI) + P L / S`` with ``S = p pi r^2 + k G A``; at large deflection the tip
+    force matches the independent continuum solver (Reissner kinematics with shear)."""
+    from fitting import continuum
+
+    ei, length, pressure, radius = 200.0, 0.6, 1.5e4, 0.075
+    flexibility = 1.0 / (2 * np.pi * 0.5 * 5e3)  # 1 / (2 pi k G t), k = 0.5, G t = 5 kN/m
+    stiffness = pressure * np.pi * radius**2 + radius / flexibility
+    structure, params = jt.cantilever(length, radius, pressure, 20, jt.LinearLaw(ei),
+                                      jt.LinearLaw(150.0), shear_flexibility=flexibility)
+    tip = structure.node_id("tube:end")
+    path = jt.DisplacementControl(tip, [0, 0, -1], jnp.array([1e-4, 0.05, 0.1]))
+    sol = jax.jit(lambda p: jt.solve_path(structure, p, path))(params)
+    jt.check_converged(sol)
+    force = np.asarray(sol.control_force)
+    compliance = length**3 / (3 * ei) + length / stiffness
+    assert force[0] == pytest.approx(1e-4 / compliance, rel=2e-3)
+    assert length / stiffness > 0.5 * length**3 / (3 * ei)  # shear is a large part here
+    reference = continuum.CantileverModel(length, continuum.linear_law(ei),
+                                          shear_stiffness=stiffness)
+    for u, f in zip((0.05, 0.1), force[1:]):
+        assert f == pytest.approx(reference.tip_force(u), rel=3e-3)

@@ -152,13 +152,14 @@ def test_closed_ring_diametral_load():
 
 
 def _hessian_cases():
-    """Structures covering every kind of term: chain with torque, line load and self-weight
-    under displacement control; an arch clamped at both ends (derived clamp joint) with a
+    """Structures covering every kind of term: chain with torque, line load, self-weight and
+    shear deformation under displacement control; an arch clamped at both ends (derived clamp joint) with a
     strut attached; a closed ring (loop closure); a frame with a pinned connection."""
     spline = jt.SplineLaw.from_tension_field(150e3, 2e4, 0.075)
     tube = jt.straight_tube("tube", (0, 0, 0), (1.0, 0.2, 0.1), 6, [(0, 0.08), (1, 0.05)],
                             2e4, spline, torsion_law=jt.LinearLaw(40.0),
-                            mass_per_length=0.4, line_load=(0.0, 1.0, -2.0))
+                            mass_per_length=0.4, line_load=(0.0, 1.0, -2.0),
+                            shear_flexibility=5e-5)
     chain = jt.build_structure([tube], [jt.Support("tube:0", "clamped")],
                                node_force={"tube:end": [0.0, 0.0, -20.0]},
                                node_torque={"tube:end": [0.3, -0.2, 0.5]})
@@ -186,7 +187,10 @@ def _hessian_cases():
             ("ring", ring_structure, None), ("pinned frame", pinned, None)]
 
 
-@pytest.mark.parametrize("case", range(4), ids=["chain", "arch+strut", "ring", "pinned"])
+# Two cases cover every Hessian term (the ring's closure and the frame's spring-less pinned
+# joint use the same code paths as the arch's second clamp and the chain's supports); each
+# case costs a compilation of the dense autodiff Hessian, so the others stay out of CI.
+@pytest.mark.parametrize("case", range(2), ids=["chain", "arch+strut"])
 def test_assembled_hessian_equals_autodiff_hessian(case):
     """The element-assembled Lagrangian Hessian the solver uses is the exact Hessian: it
     equals jax.hessian of E + lambda . c at random states and multipliers (also at zero
