@@ -153,8 +153,9 @@ def test_closed_ring_diametral_load():
 
 def _hessian_cases():
     """Structures covering every kind of term: chain with torque, line load, self-weight and
-    shear deformation under displacement control; an arch clamped at both ends (derived clamp joint) with a
-    strut attached; a closed ring (loop closure); a frame with a pinned connection."""
+    shear deformation under displacement control; an arch clamped at both ends (derived
+    clamp joint) with a strut attached; a closed ring (loop closure); a frame with a pinned
+    connection."""
     spline = jt.SplineLaw.from_tension_field(150e3, 2e4, 0.075)
     tube = jt.straight_tube("tube", (0, 0, 0), (1.0, 0.2, 0.1), 6, [(0, 0.08), (1, 0.05)],
                             2e4, spline, torsion_law=jt.LinearLaw(40.0),
