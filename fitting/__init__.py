@@ -16,11 +16,22 @@ from ._calibrate import (
     make_problem,
 )
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
+from ._effects import (
+    BUILT_IN_EFFECTS,
+    ClampCompliance,
+    Effect,
+    EffectParameter,
+    Reinforcement,
+    SelfWeight,
+    Shear,
+)
 from ._result import FitResult, ParameterEstimate, load_law
 from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
 
 __all__ = [
+    "BUILT_IN_EFFECTS", "ClampCompliance", "Effect", "EffectParameter", "Reinforcement",
+    "SelfWeight", "Shear",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
     "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",

@@ -41,15 +41,17 @@ DOWN = np.array([0.0, 0.0, -1.0])
 
 
 class TubeModel(eqx.Module):
-    """What a calibration fits: the laws of the tube (and, later, effect parameters).
+    """What a calibration fits: the laws of the tube and the effects (``fitting._effects``).
 
     Attributes:
         bending_law: moment-curvature law of bending (any :class:`jaxtube.AbstractMomentLaw`).
         torsion_law: law of torsion (a cantilever with a vertical tip load does not twist).
+        effects: tuple of :class:`fitting.Effect` instances, applied in order.
     """
 
     bending_law: jt.AbstractMomentLaw
     torsion_law: jt.AbstractMomentLaw = jt.LinearLaw(1.0)
+    effects: tuple = ()
 
 
 class CurveBatch(NamedTuple):
@@ -129,10 +131,31 @@ class RigPrediction(eqx.Module):
     joint_position: jax.Array
 
 
+# Length of the clamp-spring tube, as a fraction of the specimen length (it lies behind the
+# clamp, so the specimen keeps its length; its joint's tributary length is half of it).
+CLAMP_FRACTION = 1e-3
+
+
 @functools.lru_cache(maxsize=16)
-def _unit_cantilever(segments: int):
+def _unit_cantilever(segments: int, features: frozenset):
+    """Unit-length rig: the specimen tube along +x from the origin (tube 0), and with
+    ``"clamp_spring"`` a one-segment tube behind it, clamped at its far end and rigidly
+    joined to the specimen root (tube 1). ``"shear"`` gives every segment shear strains."""
+    unknown = set(features) - {"shear", "clamp_spring"}
+    if unknown:
+        raise ValueError(f"unknown rig features {sorted(unknown)}")
+    shear = 1.0 if "shear" in features else None
     with jax.ensure_compile_time_eval():  # concrete arrays even when first built under jit
-        return jt.cantilever(1.0, 1.0, 1.0, segments, jt.LinearLaw(1.0), jt.LinearLaw(1.0))
+        spring = jt.LinearLaw(1.0)
+        tube = jt.straight_tube("tube", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), segments, 1.0, 1.0,
+                                spring, torsion_law=spring, shear_flexibility=shear)
+        if "clamp_spring" not in features:
+            return jt.build_structure([tube], [jt.Support("tube:0", "clamped")])
+        clamp = jt.straight_tube("clamp", (-CLAMP_FRACTION, 0.0, 0.0), (0.0, 0.0, 0.0), 1,
+                                 1.0, 1.0, spring, torsion_law=spring,
+                                 shear_flexibility=shear)
+        return jt.build_structure([tube, clamp], [jt.Support("clamp:0", "clamped")],
+                                  [jt.Connection("clamp:end", "tube:0", "rigid")])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,32 +168,58 @@ class CantileverRig:
 
     segments: int = DEFAULT_SEGMENTS
     solver: jt.NewtonKKT = jt.NewtonKKT()
+    features: frozenset = frozenset()
 
     def template(self):
-        """The unit cantilever (structure, parameters), built once per segment count."""
-        return _unit_cantilever(self.segments)
+        """The unit rig (structure, parameters), built once per segment count and features."""
+        return _unit_cantilever(self.segments, frozenset(self.features))
 
     def specimen_parameters(self, model: TubeModel, pressure, radius, length):
-        """:class:`jaxtube.StructureParameters` of one specimen (traceable in all numbers)."""
-        _, params = self.template()
-        return eqx.tree_at(
+        """:class:`jaxtube.StructureParameters` of one specimen with the model's laws and
+        effects (traceable in all numbers)."""
+        from ._effects import RigSpecimen, set_clamp_compliance, set_shear_flexibility
+
+        structure, params = self.template()
+        tubes = len(structure.tube_names)
+        params = eqx.tree_at(
             lambda p: (p.node_position, p.node_radius, p.pressure, p.bending_laws,
                        p.torsion_laws),
             params,
             (params.node_position * length, jnp.full_like(params.node_radius, radius),
-             jnp.full_like(params.pressure, pressure), (model.bending_law,),
-             (model.torsion_law,)),
+             jnp.full_like(params.pressure, pressure), (model.bending_law,) * tubes,
+             (model.torsion_law,) * tubes),
         )
+        clamp = structure.tube_names.index("clamp") if "clamp" in structure.tube_names else None
+        specimen = RigSpecimen(pressure, radius, length, tube=0, clamp=clamp,
+                               clamp_length=CLAMP_FRACTION * length)
+        if clamp is not None:  # rigid until an effect says otherwise
+            params = set_clamp_compliance(params, specimen, 0.0)
+        if "shear" in self.features:
+            params = set_shear_flexibility(params, 0.0)
+        for effect in model.effects:
+            missing = set(effect.features) - set(self.features)
+            if missing:
+                raise ValueError(f"effect {effect.name!r} needs a rig with features "
+                                 f"{sorted(missing)}")
+            params = effect.apply(params, specimen)
+        return params
 
     def curve(self, model: TubeModel, pressure, radius, length, deflection) -> RigPrediction:
         """Force along one continuation path of tip deflections ``[P]`` [m]."""
         structure, _ = self.template()
         params = self.specimen_parameters(model, pressure, radius, length)
         tip = structure.node_id("tube:end")
-        path = jt.DisplacementControl(tip, DOWN, deflection)
+        # Deflections are measured from the unloaded shape: the sag under self-weight (zero
+        # without weight; one cheap solve) is added to each prescribed deflection.
+        unloaded = jt.equilibrium(structure, params, solver=self.solver)
+        sag = jnp.dot(unloaded.node_position[tip] - params.node_position[tip], DOWN)
+        path = jt.DisplacementControl(tip, DOWN, deflection + sag)
         sol = jt.solve_path(structure, params, path, self.solver)
-        joints = np.asarray([structure.joint_node[s] for s, spring in
-                             enumerate(structure.joint_spring) if spring])
+        sol = eqx.tree_at(lambda s: s.converged, sol, sol.converged & unloaded.converged)
+        tube_nodes = set(structure.tube_node_ids[0])
+        joints = np.asarray([(structure.joint_node[s] - min(tube_nodes)) if
+                             structure.joint_node[s] in tube_nodes else 0
+                             for s, spring in enumerate(structure.joint_spring) if spring])
         position = jnp.broadcast_to(jnp.asarray(joints / self.segments, float),
                                     sol.joint_regime.shape)
         return RigPrediction(force=sol.control_force, converged=sol.converged,

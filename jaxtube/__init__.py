@@ -22,6 +22,7 @@ from ._laws import AbstractMomentLaw as AbstractMomentLaw
 from ._laws import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from ._laws import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011
 from ._laws import LinearLaw as LinearLaw
+from ._laws import ReinforcedLaw as ReinforcedLaw
 from ._laws import SplineLaw as SplineLaw
 from ._laws import TensionFieldLaw as TensionFieldLaw
 from ._mechanics import Configuration as Configuration

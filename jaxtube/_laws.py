@@ -164,6 +164,34 @@ class LinearLaw(AbstractMomentLaw):
         return self.stiffness * jnp.ones_like(pressure)
 
 
+class ReinforcedLaw(AbstractMomentLaw):
+    """A law with a pressure-independent stiffness in parallel: `M = M_base + EI_r kappa`.
+
+    Models tape, seams or a bladder that carry bending whatever the pressure (PHYSICS.md
+    section 5: delays wrinkling, lifts the collapse plateau, relatively larger at low
+    pressure). The regime is the base law's (the reinforcement does not wrinkle).
+
+    Fields: `base` (any law), `reinforcement_stiffness` EI_r [N m^2] (>= 0).
+    """
+
+    base: AbstractMomentLaw
+    reinforcement_stiffness: Array = eqx.field(converter=_as_float)
+
+    def energy_density(self, curvature_sq, pressure, radius):
+        return (self.base.energy_density(curvature_sq, pressure, radius)
+                + 0.5 * self.reinforcement_stiffness * _as_float(curvature_sq))
+
+    def moment(self, curvature, pressure, radius):
+        return (self.base.moment(curvature, pressure, radius)
+                + self.reinforcement_stiffness * _as_float(curvature))
+
+    def regime(self, curvature, pressure, radius):
+        return self.base.regime(curvature, pressure, radius)
+
+    def initial_stiffness(self, pressure, radius):
+        return self.base.initial_stiffness(pressure, radius) + self.reinforcement_stiffness
+
+
 # --------------------------------------------------------------------------------------------
 # Spline law (Breukels & Ockels 2008)
 # --------------------------------------------------------------------------------------------
