@@ -152,28 +152,37 @@ def _full_vector(free_values, base, free_index):
     return jnp.asarray(base).at[jnp.asarray(free_index)].set(free_values)
 
 
-def _model_forces(free_values, base, reference, batch_arrays, *, rig, scaling, free_index):
+def _model_forces(free_values, base, reference, batch_arrays, *, rig, scaling, free_index,
+                  effects=()):
     vector = _full_vector(free_values, base, free_index)
-    law = scaling.law(vector, reference[0], reference[1])
+    n_law = len(scaling.names())
+    law = scaling.law(vector[:n_law], reference[0], reference[1])
+    instances, k = [], n_law
+    for effect in effects:
+        count = len(effect.parameters)
+        instances.append(effect(*[vector[k + j] for j in range(count)]))
+        k += count
     pressure, radius, length, deflection = batch_arrays
-    prediction = rig.predict(TubeModel(law), pressure, radius, length, deflection)
+    prediction = rig.predict(TubeModel(law, effects=tuple(instances)), pressure, radius, length,
+                             deflection)
     return prediction.force, prediction
 
 
 def _residual_fn(free_values, base, reference, batch_arrays, target, scale, prior_mean,
-                 prior_sd, *, rig, scaling, free_index):
+                 prior_sd, *, rig, scaling, free_index, effects=()):
     force, prediction = _model_forces(
         free_values, base, reference, batch_arrays, rig=rig, scaling=scaling,
-        free_index=free_index)
+        free_index=free_index, effects=effects)
     residual = (scale * (force - target)).reshape(-1)
     prior = (free_values - prior_mean) / prior_sd  # inf sd -> 0 (no prior)
     return jnp.concatenate([residual, prior]), prediction
 
 
-@partial(jax.jit, static_argnames=("rig", "scaling", "free_index"))
-def _residuals_and_jacobian(free_values, *args, rig, scaling, free_index):
+@partial(jax.jit, static_argnames=("rig", "scaling", "free_index", "effects"))
+def _residuals_and_jacobian(free_values, *args, rig, scaling, free_index, effects=()):
     def fn(x):
-        r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, free_index=free_index)
+        r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, free_index=free_index,
+                                     effects=effects)
         return r, (r, prediction)
 
     jacobian, (residual, prediction) = jax.jacfwd(fn, has_aux=True)(free_values)
@@ -199,10 +208,11 @@ class FitProblem:
     base: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    prior_mean: np.ndarray
+    prior_mean: np.ndarray  # [n_names] (sd inf: no prior)
     prior_sd: np.ndarray
     noise: float
     noise_given: bool
+    effects: tuple = ()  # effect classes whose parameters follow the law's coordinates
 
     @property
     def free_names(self) -> list[str]:
@@ -213,7 +223,17 @@ class FitProblem:
         return (b.pressure, b.radius, b.length, b.deflection)
 
     def static(self):
-        return dict(rig=self.rig, scaling=self.scaling, free_index=self.free_index)
+        # The compiled residual function always differentiates with respect to every
+        # coordinate; which are free is chosen on the host (columns of the Jacobian), so
+        # fits that free different coordinates (a diagnosis) share one compilation.
+        return dict(rig=self.rig, scaling=self.scaling,
+                    free_index=tuple(range(len(self.names))), effects=self.effects)
+
+    def full(self, free_values) -> np.ndarray:
+        """The whole coordinate vector with ``free_values`` at the free positions."""
+        vector = np.array(self.base, float)
+        vector[np.asarray(self.free_index)] = free_values
+        return vector
 
     def scale(self, robust_weight=None):
         w = self.batch.weight * (1.0 if robust_weight is None else robust_weight)
@@ -226,15 +246,26 @@ class FitProblem:
 
 def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
                  rig: CantileverRig | None = None, options: FitOptions | None = None,
-                 initial: np.ndarray | None = None) -> FitProblem:
-    """Set up the least-squares problem: layout, first guess, fixed values, bounds, priors."""
+                 initial: np.ndarray | None = None, effects: tuple = ()) -> FitProblem:
+    """Set up the least-squares problem: layout, first guess, fixed values, bounds, priors.
+
+    ``effects``: :class:`fitting.Effect` subclasses whose parameters are fitted too (named
+    ``effect.parameter``, starting at their null values, within their bounds); the rig gets
+    the degrees of freedom they need.
+    """
     scaling = scaling or PivotScaling()
     rig = rig or CantileverRig()
     options = options or FitOptions()
+    effects = tuple(effects)
+    features = frozenset(rig.features).union(*[e.features for e in effects])
+    rig = dataclasses.replace(rig, features=features)
     batch = batch_curves(data)
     reference = reference_specimen(data)
-    names = tuple(scaling.names())
-    base = np.array(initial_vector(data, scaling) if initial is None else initial, float)
+    effect_parameters = [(e, p) for e in effects for p in e.parameters]
+    names = tuple(scaling.names()) + tuple(f"{e.name}.{p.name}" for e, p in effect_parameters)
+    law_vector = initial_vector(data, scaling) if initial is None else initial
+    base = np.concatenate([np.asarray(law_vector, float),
+                           [p.null for _, p in effect_parameters]])
     known = set(names)
     for table in (options.fixed, options.priors, options.bounds):
         unknown = sorted(set(table) - known)
@@ -250,8 +281,11 @@ def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
     upper = np.full(len(names), np.inf)
     prior_mean = np.zeros(len(names))
     prior_sd = np.full(len(names), np.inf)
+    effect_bounds = {f"{e.name}.{p.name}": (p.lower, p.upper) for e, p in effect_parameters}
     for i, name in enumerate(names):
-        if not name.endswith(".A"):
+        if name in effect_bounds:
+            lower[i], upper[i] = options.bounds.get(name, effect_bounds[name])
+        elif not name.endswith(".A"):
             lower[i], upper[i] = options.bounds.get(name, EXPONENT_BOUNDS)
         else:
             lower[i] = base[i] - math.log(SCALE_RANGE)
@@ -267,7 +301,7 @@ def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
         if not name.endswith(".A"):
             base[names.index(name)] = float(value)
     for name in names:
-        if name.endswith(".A"):
+        if name.endswith(".A") and name not in effect_bounds:
             exponent_of[name] = [names.index(name[:-1] + e) for e in scaling.exponents]
     log_reference = _log_reference(scaling, reference)
     for name, value in options.fixed.items():
@@ -294,8 +328,8 @@ def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
     return FitProblem(
         data=data, batch=batch, rig=rig, scaling=scaling, reference=reference, names=names,
         free_index=free_index, base=base, lower=lower[free], upper=upper[free],
-        prior_mean=prior_mean[free], prior_sd=prior_sd[free], noise=noise,
-        noise_given=options.noise_N is not None)
+        prior_mean=prior_mean, prior_sd=prior_sd, noise=noise,
+        noise_given=options.noise_N is not None, effects=effects)
 
 
 def _log_reference(scaling: PivotScaling, reference) -> np.ndarray:
@@ -321,9 +355,9 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         # Residuals and Jacobian always come together: one compiled function (compile time
         # dominates a fit), and the forward-mode Jacobian costs little more than the solves.
         counts["jacobian"] += 1
-        r, jac, pred = _residuals_and_jacobian(jnp.asarray(x), *problem.residual_args(robust),
-                                               **static)
-        return np.asarray(r), np.asarray(jac), pred
+        r, jac, pred = _residuals_and_jacobian(jnp.asarray(problem.full(x)),
+                                               *problem.residual_args(robust), **static)
+        return np.asarray(r), np.asarray(jac)[:, np.asarray(problem.free_index)], pred
 
     def ok(r, jac, pred):
         return (bool(np.all(np.asarray(pred.converged)[problem.batch.mask]))
@@ -341,7 +375,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         r, jac, pred = evaluate(x)
     cost = 0.5 * float(r @ r)
     jtj = jac.T @ jac
-    mu = 1e-3 * float(np.max(np.diag(jtj)))
+    mu = 1e-3  # dimensionless: the damping term is mu * diag(J^T J) (Marquardt scaling)
     nu = 2.0
     message, converged = "maximum number of iterations reached", False
     iteration = 0
@@ -370,7 +404,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
             else:
                 mu *= nu
                 nu *= 2.0
-                if not mu < 1e16 * max(float(np.max(diag)), 1.0):
+                if not mu < 1e16:
                     break
         if not accepted:
             message, converged = "no further decrease possible (damping exhausted)", True
@@ -408,9 +442,10 @@ def _rmse(problem: FitProblem, prediction) -> float:
 
 def fit(data: MeasuredData, scaling: PivotScaling | None = None,
         rig: CantileverRig | None = None, options: FitOptions | None = None,
-        initial: np.ndarray | None = None):
-    """Fit the pivot scaling to every curve of ``data`` at once; returns a
-    :class:`fitting.FitResult` (estimates, uncertainties, identifiability, RMSE, report)."""
+        initial: np.ndarray | None = None, effects: tuple = ()):
+    """Fit the pivot scaling (and the parameters of ``effects``, :class:`fitting.Effect`
+    subclasses) to every curve of ``data`` at once; returns a :class:`fitting.FitResult`
+    (estimates, uncertainties, identifiability, RMSE, report)."""
     from ._result import FitResult
 
     options = options or FitOptions()
@@ -418,7 +453,7 @@ def fit(data: MeasuredData, scaling: PivotScaling | None = None,
         raise ValueError(f"loss must be 'linear' or 'huber', got {options.loss!r}")
     if options.multistart < 1:
         raise ValueError(f"multistart must be >= 1, got {options.multistart}")
-    problem = make_problem(data, scaling, rig, options, initial)
+    problem = make_problem(data, scaling, rig, options, initial, effects)
     x0 = problem.base[np.asarray(problem.free_index)]
     rng = np.random.default_rng(options.seed)
     starts = [x0] + [
@@ -470,9 +505,11 @@ def forces_and_sensitivity(problem: FitProblem, free_values, batch_arrays):
     shape = np.shape(batch_arrays[3])
     args = (problem.base, np.asarray(problem.reference), batch_arrays, np.zeros(shape),
             np.ones(shape), problem.prior_mean, problem.prior_sd)
-    r, jac, pred = _residuals_and_jacobian(jnp.asarray(free_values), *args, **problem.static())
+    r, jac, pred = _residuals_and_jacobian(jnp.asarray(problem.full(free_values)), *args,
+                                           **problem.static())
     n = int(np.prod(shape))
-    return (np.asarray(r[:n]).reshape(shape), np.asarray(jac[:n]).reshape(shape + (-1,)),
+    jac = np.asarray(jac[:n])[:, np.asarray(problem.free_index)]
+    return (np.asarray(r[:n]).reshape(shape), jac.reshape(shape + (-1,)),
             np.asarray(pred.converged))
 
 

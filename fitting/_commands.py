@@ -4,6 +4,9 @@
 the measurement file (format in :mod:`fitting._data`), print the parameter table with
 standard errors, identifiability notes and per-curve / overall RMSE, and write into DIR:
 
+``--effect NAME`` (repeatable) fits an effect's parameters too: a built-in name or
+``path/to/file.py:ClassName`` (a :class:`fitting.Effect` subclass).
+
 - ``parameters.json``: the fitted law and its uncertainty (format in
   :mod:`fitting._result`); ``jaxtube simulate --params`` and ``jaxtube predict`` load it;
 - ``fit.png``: fitted against measured curves with 95 % bands, and residuals;
@@ -32,6 +35,7 @@ from jaxtube._cli import positive_float, positive_int, write_directory
 
 from ._calibrate import FitError, FitOptions, Prior, fit
 from ._data import DataError, load_measurements
+from ._effects import resolve_effect
 from ._result import Z_95, load_law
 from ._scaling import FORMS, PivotScaling
 
@@ -88,6 +92,9 @@ def add_fit(subparsers) -> None:
     parser.add_argument("--prior", type=_prior, action="append", default=[],
                         metavar="NAME=MEAN+-SD", help="Gaussian prior (repeatable; on log A "
                                                       "for A, sd relative)")
+    parser.add_argument("--effect", action="append", default=[], metavar="NAME|FILE.py:Class",
+                        help="also fit an effect: shear, reinforcement, clamp_compliance, "
+                             "self_weight, or a user's Effect subclass (repeatable)")
     parser.add_argument("--robust", action="store_true", help="Huber loss (outliers)")
     parser.add_argument("--multistart", type=positive_int, default=1,
                         help="number of starts (default 1: the physics-based guess)")
@@ -136,10 +143,11 @@ def run_fit(args) -> int:
                              multistart=args.multistart, max_iterations=args.max_iterations,
                              progress=not args.quiet)
         rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
+        effects = tuple(resolve_effect(text) for text in args.effect)
         print(f"fitting {len(data)} curves ({data.point_count} points) from {args.data}; "
               f"{args.form} scaling, pivots {','.join(map(str, args.pivots))}; compiling the "
               "model (the first evaluation takes a while) ...", file=sys.stderr, flush=True)
-        result = fit(data, scaling, rig, options)
+        result = fit(data, scaling, rig, options, effects=effects)
     except (ValueError, FitError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

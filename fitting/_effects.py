@@ -56,7 +56,8 @@ class RigSpecimen:
 
     pressure [Pa], radius [m], length [m]; ``tube``: index of the specimen tube in the
     structure's tubes; ``clamp``: index of the clamp-spring tube or None; ``clamp_length``:
-    that tube's length [m] (its joint's tributary length is half of it).
+    that tube's length [m] (its joint's tributary length is half of it); ``tip_node``: the
+    global index of the loaded tip node; ``gravity``: [3] m/s^2.
     """
 
     pressure: object
@@ -65,6 +66,8 @@ class RigSpecimen:
     tube: int
     clamp: int | None
     clamp_length: object
+    tip_node: int = -1
+    gravity: object = (0.0, 0.0, -9.81)
 
 
 class Effect(eqx.Module):
@@ -171,3 +174,31 @@ def set_shear_flexibility(params, flexibility):
 
 BUILT_IN_EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls for cls in (Shear, Reinforcement, ClampCompliance, SelfWeight)}
+
+
+def resolve_effect(text: str) -> type[Effect]:
+    """A built-in effect by name, or a user's ``path/to/file.py:ClassName`` (clear errors)."""
+    if text in BUILT_IN_EFFECTS:
+        return BUILT_IN_EFFECTS[text]
+    path, sep, class_name = text.rpartition(":")
+    if not sep or not path.endswith(".py"):
+        raise ValueError(f"effect {text!r}: expected one of {sorted(BUILT_IN_EFFECTS)} or "
+                         "path/to/file.py:ClassName")
+    import importlib.util
+    from pathlib import Path
+
+    file = Path(path)
+    if not file.is_file():
+        raise ValueError(f"effect {text!r}: file {file} not found")
+    spec = importlib.util.spec_from_file_location(f"jaxtube_user_effect_{file.stem}", file)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as error:  # the user's file: report, do not crash
+        raise ValueError(f"effect {text!r}: importing {file} failed: {error}") from error
+    cls = getattr(module, class_name, None)
+    if not (isinstance(cls, type) and issubclass(cls, Effect)):
+        raise ValueError(f"effect {text!r}: {file} has no Effect subclass {class_name!r}")
+    if not cls.name or not cls.parameters:
+        raise ValueError(f"effect {text!r}: {class_name} must set 'name' and 'parameters'")
+    return cls

@@ -109,8 +109,7 @@ class FitResult:
         factor = 1.0 if problem.noise_given else residual_variance
         ridge = np.linalg.inv(scaled + 1e-10 * np.eye(n_free)) / np.outer(scale, scale)
         se_free = np.sqrt(np.maximum(np.diag(ridge) * factor, 0.0))
-        thresholds = np.array([UNIDENTIFIED_SE if n.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
-                               for n in problem.free_names])
+        thresholds = np.array([_threshold(problem, n) for n in problem.free_names])
         se_free = np.where(se_free > thresholds, np.inf, se_free)
         # Covariance for errors and bands: the pseudo-inverse, i.e. the uncertainty of what
         # the data determine (directions they do not see are left out, see the README).
@@ -231,6 +230,8 @@ class FitResult:
             "segments": self.problem.rig.segments,
             "convergence": dataclasses.asdict(self.convergence),
             "identifiability": list(self.identifiability),
+            "effects": {e.name: {p.name: float(self.vector[list(self.problem.names).index(
+                f"{e.name}.{p.name}")]) for p in e.parameters} for e in self.problem.effects},
             "data": str(self.problem.data.source),
         }
 
@@ -247,6 +248,22 @@ class FitResult:
                 se, status = f"{p.standard_error:.4g}", ""
             lines.append(f"{p.name:<14}{p.value:>14.6g}{se:>14}  {status}")
         return "\n".join(lines)
+
+
+def _effect_parameter(problem: FitProblem, name: str):
+    for effect in problem.effects:
+        for parameter in effect.parameters:
+            if name == f"{effect.name}.{parameter.name}":
+                return parameter
+    return None
+
+
+def _threshold(problem: FitProblem, name: str) -> float:
+    """Standard error above which a fitted coordinate counts as not identified."""
+    parameter = _effect_parameter(problem, name)
+    if parameter is not None:
+        return 1e3 * parameter.typical
+    return UNIDENTIFIED_SE if name.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
 
 
 def _finite(value):
@@ -273,13 +290,17 @@ def _report_parameters(problem: FitProblem, x, covariance, se_free):
     n_free = len(problem.free_index)
     estimates, words = [], []
     unidentified = set()
-    for name in names:
-        value = physical[name]
+    for i, name in enumerate(names):
+        effect_parameter = _effect_parameter(problem, name)
+        value = float(full[i]) if effect_parameter is not None else physical[name]
         fixed = name not in position
         if fixed:
             estimates.append(ParameterEstimate(name, value, math.nan, True, True))
             continue
-        if name.endswith(".A"):
+        if effect_parameter is not None:
+            se = float(se_free[position[name]])
+            identified = bool(math.isfinite(se))
+        elif name.endswith(".A"):
             # A = exp(log a - sum_e exponent_e log ref_e): gradient in the free coordinates.
             grad = np.zeros(n_free)
             grad[position[name]] = value
@@ -301,7 +322,13 @@ def _report_parameters(problem: FitProblem, x, covariance, se_free):
     # A pivot is unresolved when its increment at the reference specimen (log a) is not
     # determined; an A that is unidentified only through its exponent is not.
     unresolved = {name for name in names if name.endswith(".A") and name in position
+                  and _effect_parameter(problem, name) is None
                   and not math.isfinite(se_free[position[name]])}
+    unidentified_effects = sorted(n for n in unidentified if _effect_parameter(problem, n))
+    unidentified = {n for n in unidentified if n not in unidentified_effects}
+    if unidentified_effects:
+        words.append(f"Not identified: {', '.join(unidentified_effects)}: the data do not "
+                     "determine these effect parameters.")
     words += _identifiability_words(problem, unidentified, unresolved, covariance)
     return estimates, words
 
@@ -375,21 +402,29 @@ def predict_from_document(document: dict, pressure: float, radius: float, length
     """Cantilever force [N] and its delta-method standard deviation at tip deflections
     ``[P]`` [m], from a parameters file's contents (its law, coordinates and covariance)."""
     from ._calibrate import FitProblem, forces_and_sensitivity
+    from ._effects import BUILT_IN_EFFECTS
     from ._rig import CantileverRig
 
+    unknown = [name for name in document.get("effects", {}) if name not in BUILT_IN_EFFECTS]
+    if unknown:
+        raise ValueError(f"the fit used effect(s) {unknown}, which are not built in; predict "
+                         "with the Python API (FitResult.predict) instead")
+    effects = tuple(BUILT_IN_EFFECTS[name] for name in document.get("effects", {}))
     law = document["law"]
     scaling = PivotScaling(form=law["form"], pivots_per_regime=tuple(law["pivots_per_regime"]),
                            residual_stiffness_ratio=float(law["residual_stiffness_ratio"]))
     coordinates = document["coordinates"]
     free_index = tuple(int(i) for i in coordinates["free_index"])
-    n_free = len(free_index)
     reference = (float(document["reference"]["pressure_Pa"]),
                  float(document["reference"]["radius_m"]))
+    features = frozenset().union(*[e.features for e in effects])
     problem = FitProblem(
-        data=None, batch=None, rig=CantileverRig(segments=int(document["segments"])),
+        data=None, batch=None, rig=CantileverRig(segments=int(document["segments"]),
+                                                 features=features), effects=effects,
         scaling=scaling, reference=reference, names=tuple(coordinates["names"]),
         free_index=free_index, base=np.asarray(coordinates["values"], float),
-        lower=None, upper=None, prior_mean=np.zeros(n_free), prior_sd=np.full(n_free, np.inf),
+        lower=None, upper=None, prior_mean=np.zeros(len(coordinates["names"])),
+        prior_sd=np.full(len(coordinates["names"]), np.inf),
         noise=float(document["noise_N"]), noise_given=True)
     values = problem.base[np.asarray(free_index)]
     arrays = specimen_arrays([pressure], [radius], [length], np.asarray(deflection)[None])

@@ -191,7 +191,8 @@ class CantileverRig:
         )
         clamp = structure.tube_names.index("clamp") if "clamp" in structure.tube_names else None
         specimen = RigSpecimen(pressure, radius, length, tube=0, clamp=clamp,
-                               clamp_length=CLAMP_FRACTION * length)
+                               clamp_length=CLAMP_FRACTION * length,
+                               tip_node=structure.node_id("tube:end"), gravity=params.gravity)
         if clamp is not None:  # rigid until an effect says otherwise
             params = set_clamp_compliance(params, specimen, 0.0)
         if "shear" in self.features:
