@@ -761,9 +761,9 @@ def main(argv=None) -> int:
     per_curve = timing_c.median / batch
     report(f"7. vmap {'does not amortise' if per_curve > 0.7 * timing_b.median else 'amortises'}"
            f": {per_curve:.2f} s per curve batched vs {timing_b.median:.2f} s unbatched"
-           + (": the Hessian's 63-wide tangent arithmetic, not per-call overhead, is what "
-              "costs, so batching cannot hide it; " if per_curve > 0.7 * timing_b.median
-              else "; ")
+           + (": the batched while loops run every member's linear algebra and line "
+              "search in lockstep, and the small-array work does not get cheaper per member; "
+              if per_curve > 0.7 * timing_b.median else "; ")
            + f"lockstep while loops then add {lockstep / mean_member - 1:.0%} extra Newton steps "
            "over the average member.")
     report(f"8. Compile time: (a) {compile_a:.0f} s, (b) {compile_b:.0f} s, (c) {compile_c:.0f} "
