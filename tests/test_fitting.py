@@ -154,6 +154,14 @@ def test_fit_cli_writes_parameters_that_simulate_and_predict_load(data, tmp_path
     _, force, low, high = (float(v) for v in rows[-1].split(","))
     assert 0 < low < force < high
 
+    simulated = tmp_path / "simulate"
+    example = ROOT / "jaxtube" / "examples" / "cantilever.toml"
+    code = main(["simulate", str(example), "--params", str(out / "parameters.json"),
+                 "--steps", "4", "--out", str(simulated), "--quiet"])
+    assert code == 0
+    summary = json.loads((simulated / "summary.json").read_text())
+    assert summary["converged_steps"] == 4
+
 
 @pytest.mark.parametrize("case", ["missing column", "out is a file", "unknown parameter",
                                   "bad prior"])
