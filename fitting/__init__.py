@@ -16,6 +16,7 @@ from ._calibrate import (
     make_problem,
 )
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
+from ._diagnose import ScoreTest, score_test
 from ._effects import (
     BUILT_IN_EFFECTS,
     ClampCompliance,
@@ -31,7 +32,7 @@ from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_sti
 
 __all__ = [
     "BUILT_IN_EFFECTS", "ClampCompliance", "Effect", "EffectParameter", "Reinforcement",
-    "SelfWeight", "Shear",
+    "SelfWeight", "Shear", "ScoreTest", "score_test",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
     "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
