@@ -44,6 +44,22 @@ def true_law() -> jt.SplineLaw:
                                     pivots_per_regime=(1, 1, 1))
 
 
+def write_noisy_curves(path, curves, noise_force: float, rng) -> None:
+    """Write ``(name, p_bar, radius_m, length_m, deflections_m [n], loads_N [n])`` curves as
+    measurement CSV rows with Gaussian noise: per curve, ``NOISE_DEFLECTION_MM`` on the
+    deflections, then ``noise_force`` [N] on the forces."""
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["curve", "setup", "pressure_bar", "radius_m", "length_m",
+                         "deflection_mm", "force_N"])
+        for name, p_bar, radius, length, deflections, loads in curves:
+            u = deflections * 1e3 + NOISE_DEFLECTION_MM * rng.standard_normal(loads.size)
+            f = loads + noise_force * rng.standard_normal(loads.size)
+            for ui, fi in zip(u, f):
+                writer.writerow([name, "cantilever_tip", f"{p_bar:g}", f"{radius:g}",
+                                 f"{length:g}", f"{ui:.3f}", f"{fi:.4f}"])
+
+
 def main(path: str) -> None:
     law = true_law()
     rng = np.random.default_rng(SEED)
@@ -68,16 +84,9 @@ def main(path: str) -> None:
             curves.append((name, p_bar, radius, deflections, loads))
             print(f"{name}: up to {deflections[-1] * 1e3:.1f} mm, {loads[-1]:.2f} N", flush=True)
     noise_force = NOISE_FRACTION * max(c[4][-1] for c in curves)
-    with open(path, "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["curve", "setup", "pressure_bar", "radius_m", "length_m",
-                         "deflection_mm", "force_N"])
-        for name, p_bar, radius, deflections, loads in curves:
-            u = deflections * 1e3 + NOISE_DEFLECTION_MM * rng.standard_normal(loads.size)
-            f = loads + noise_force * rng.standard_normal(loads.size)
-            for ui, fi in zip(u, f):
-                writer.writerow([name, "cantilever_tip", f"{p_bar:g}", f"{radius:g}",
-                                 f"{LENGTH_M:g}", f"{ui:.3f}", f"{fi:.4f}"])
+    write_noisy_curves(path, [(name, p_bar, radius, LENGTH_M, deflections, loads)
+                              for name, p_bar, radius, deflections, loads in curves],
+                       noise_force, rng)
     print(f"wrote {path}: force noise sd {noise_force:.4f} N, deflection noise sd "
           f"{NOISE_DEFLECTION_MM} mm")
 

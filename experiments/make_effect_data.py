@@ -38,7 +38,6 @@ Rounded to 0.001 mm and 0.0001 N. Columns
 """
 
 import argparse
-import csv
 import importlib.util
 import pathlib
 import time
@@ -59,7 +58,7 @@ GRAVITY = 9.81
 POINTS = 14
 LOAD_FACTOR, FALLBACK_FACTOR = 0.85, 0.80
 NOISE_FRACTION = 0.01
-NOISE_DEFLECTION_MM = 0.05
+NOISE_DEFLECTION_MM = _calibration.NOISE_DEFLECTION_MM  # the shared writer adds it
 DEFAULT = ((0.15, 0.075, 0.6), (0.30, 0.075, 0.6), (0.15, 0.075, 1.2), (0.30, 0.075, 1.2),
            (0.22, 0.06, 0.9), (0.22, 0.09, 0.9))
 ONE_RADIUS = DEFAULT[:4] + ((0.22, 0.075, 0.9), (0.22, 0.075, 0.75))
@@ -132,16 +131,10 @@ def make_dataset(name):
     noise_force = NOISE_FRACTION * largest
     target = ROOT / path
     target.parent.mkdir(parents=True, exist_ok=True)
-    with open(target, "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["curve", "setup", "pressure_bar", "radius_m", "length_m",
-                         "deflection_mm", "force_N"])
-        for curve, p_bar, radius, length, loads, deflections, _ in curves:
-            u = deflections * 1e3 + NOISE_DEFLECTION_MM * rng.standard_normal(loads.size)
-            f = loads + noise_force * rng.standard_normal(loads.size)
-            for ui, fi in zip(u, f):
-                writer.writerow([curve, "cantilever_tip", f"{p_bar:g}", f"{radius:g}",
-                                 f"{length:g}", f"{ui:.3f}", f"{fi:.4f}"])
+    _calibration.write_noisy_curves(
+        target, [(curve, p_bar, radius, length, deflections, loads)
+                 for curve, p_bar, radius, length, loads, deflections, _ in curves],
+        noise_force, rng)
     print(f"{name}: wrote {path} (seed {seed}, load factor {factor}); largest force "
           f"{largest:.3f} N, force sd {noise_force:.4f} N, deflection sd "
           f"{NOISE_DEFLECTION_MM} mm", flush=True)

@@ -148,13 +148,7 @@ class Convergence:
 # --------------------------------------------------------------------------------------------
 
 
-def _full_vector(free_values, base, free_index):
-    return jnp.asarray(base).at[jnp.asarray(free_index)].set(free_values)
-
-
-def _model_forces(free_values, base, reference, batch_arrays, *, rig, scaling, free_index,
-                  effects=()):
-    vector = _full_vector(free_values, base, free_index)
+def _model_forces(vector, reference, batch_arrays, *, rig, scaling, effects=()):
     n_law = len(scaling.names())
     law = scaling.law(vector[:n_law], reference[0], reference[1])
     instances, k = [], n_law
@@ -168,24 +162,25 @@ def _model_forces(free_values, base, reference, batch_arrays, *, rig, scaling, f
     return prediction.force, prediction
 
 
-def _residual_fn(free_values, base, reference, batch_arrays, target, scale, prior_mean,
-                 prior_sd, *, rig, scaling, free_index, effects=()):
-    force, prediction = _model_forces(
-        free_values, base, reference, batch_arrays, rig=rig, scaling=scaling,
-        free_index=free_index, effects=effects)
+def _residual_fn(vector, reference, batch_arrays, target, scale, prior_mean, prior_sd, *, rig,
+                 scaling, effects=()):
+    force, prediction = _model_forces(vector, reference, batch_arrays, rig=rig,
+                                      scaling=scaling, effects=effects)
     residual = (scale * (force - target)).reshape(-1)
-    prior = (free_values - prior_mean) / prior_sd  # inf sd -> 0 (no prior)
+    prior = (vector - prior_mean) / prior_sd  # inf sd -> 0 (no prior)
     return jnp.concatenate([residual, prior]), prediction
 
 
-@partial(jax.jit, static_argnames=("rig", "scaling", "free_index", "effects"))
-def _residuals_and_jacobian(free_values, *args, rig, scaling, free_index, effects=()):
+@partial(jax.jit, static_argnames=("rig", "scaling", "effects"))
+def _residuals_and_jacobian(vector, *args, rig, scaling, effects=()):
+    """Residuals and their Jacobian w.r.t. the whole coordinate vector (every coordinate:
+    which are free is chosen on the host, so fits that free different coordinates share
+    this compilation)."""
     def fn(x):
-        r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, free_index=free_index,
-                                     effects=effects)
+        r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, effects=effects)
         return r, (r, prediction)
 
-    jacobian, (residual, prediction) = jax.jacfwd(fn, has_aux=True)(free_values)
+    jacobian, (residual, prediction) = jax.jacfwd(fn, has_aux=True)(vector)
     return residual, jacobian, prediction
 
 
@@ -223,11 +218,7 @@ class FitProblem:
         return (b.pressure, b.radius, b.length, b.deflection)
 
     def static(self):
-        # The compiled residual function always differentiates with respect to every
-        # coordinate; which are free is chosen on the host (columns of the Jacobian), so
-        # fits that free different coordinates (a diagnosis) share one compilation.
-        return dict(rig=self.rig, scaling=self.scaling,
-                    free_index=tuple(range(len(self.names))), effects=self.effects)
+        return dict(rig=self.rig, scaling=self.scaling, effects=self.effects)
 
     def full(self, free_values) -> np.ndarray:
         """The whole coordinate vector with ``free_values`` at the free positions."""
@@ -240,7 +231,7 @@ class FitProblem:
         return np.sqrt(w) / self.noise
 
     def residual_args(self, robust_weight=None):
-        return (self.base, np.asarray(self.reference), self.batch_arrays(), self.batch.force,
+        return (np.asarray(self.reference), self.batch_arrays(), self.batch.force,
                 self.scale(robust_weight), self.prior_mean, self.prior_sd)
 
 
@@ -369,10 +360,16 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         bad = int(np.sum(~np.asarray(pred.converged)[problem.batch.mask]))
         raise FitError(f"the equilibrium solves failed at the initial guess ({bad} points did "
                        "not converge); check the data units (bar, mm, m, N)")
-    if options.loss == "huber":
+    def reweighted(x, r, jac, pred):
+        # Huber loss by iteratively reweighted least squares: weights from these residuals.
+        nonlocal robust
+        if options.loss != "huber":
+            return r, jac, pred
         robust = _huber_weight(r[:n_data].reshape(problem.batch.force.shape),
                                options.huber_threshold)
-        r, jac, pred = evaluate(x)
+        return evaluate(x)
+
+    r, jac, pred = reweighted(x, r, jac, pred)
     cost = 0.5 * float(r @ r)
     jtj = jac.T @ jac
     mu = 1e-3  # dimensionless: the damping term is mu * diag(J^T J) (Marquardt scaling)
@@ -412,11 +409,8 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         relative_change = (cost - cost_new) / max(cost, 1e-300)
         cost_before = cost
         small_step = float(np.max(np.abs(step))) <= 1e-10 * (1.0 + float(np.max(np.abs(x))))
-        x, r, jac, pred = x_new, r_new, jac_new, pred_new
-        if options.loss == "huber":
-            robust = _huber_weight(r[:n_data].reshape(problem.batch.force.shape),
-                                   options.huber_threshold)
-            r, jac, pred = evaluate(x)
+        x = x_new
+        r, jac, pred = reweighted(x, r_new, jac_new, pred_new)
         cost = 0.5 * float(r @ r)
         jtj = jac.T @ jac
         if bar is not None:
@@ -503,8 +497,8 @@ def forces_and_sensitivity(problem: FitProblem, free_values, batch_arrays):
     targets, so arrays of the fitted data's shape need no new compilation.
     """
     shape = np.shape(batch_arrays[3])
-    args = (problem.base, np.asarray(problem.reference), batch_arrays, np.zeros(shape),
-            np.ones(shape), problem.prior_mean, problem.prior_sd)
+    args = (np.asarray(problem.reference), batch_arrays, np.zeros(shape), np.ones(shape),
+            problem.prior_mean, problem.prior_sd)
     r, jac, pred = _residuals_and_jacobian(jnp.asarray(problem.full(free_values)), *args,
                                            **problem.static())
     n = int(np.prod(shape))

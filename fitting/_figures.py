@@ -10,8 +10,6 @@ from matplotlib.figure import Figure
 
 from ._result import Z_95, FitResult
 
-BAND_POINTS = None  # the band is drawn at as many deflections as the fitted batch holds
-
 
 def band_grid(result: FitResult) -> np.ndarray:
     """Deflections ``[C, P]`` [m] for smooth model curves: ``P`` evenly spaced points from 0

@@ -188,12 +188,6 @@ class FitResult:
                                "not converge")
         return force, sd
 
-    @property
-    def standard_errors_free(self) -> np.ndarray:
-        """Standard errors of the fitted coordinates (``log a`` and exponents); inf where
-        the data do not determine them."""
-        return self.free_standard_errors
-
     # -- output -------------------------------------------------------------------------------
 
     def to_json(self) -> dict:
@@ -401,7 +395,6 @@ def predict_from_document(document: dict, pressure: float, radius: float, length
                           deflection) -> tuple[np.ndarray, np.ndarray]:
     """Cantilever force [N] and its delta-method standard deviation at tip deflections
     ``[P]`` [m], from a parameters file's contents (its law, coordinates and covariance)."""
-    from ._calibrate import FitProblem, forces_and_sensitivity
     from ._effects import BUILT_IN_EFFECTS
     from ._rig import CantileverRig
 
