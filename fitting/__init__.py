@@ -2,7 +2,9 @@
 
 One public namespace: measured data (:func:`load_measurements`), the bench models
 (:class:`CantileverRig`), the pivot scaling (:class:`PivotScaling`), the fit (:func:`fit`,
-:class:`FitOptions`, :class:`FitResult`) and the parameters file (:func:`load_law`).
+:class:`FitOptions`, :class:`FitResult`), the parameters file (:func:`load_law`), the
+comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
+and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`).
 The independent continuum reference solver is :mod:`fitting.continuum`.
 """
 
@@ -13,15 +15,29 @@ from ._calibrate import (
     Prior,
     estimate_noise,
     fit,
+    fit_problem,
     make_problem,
 )
+from ._compare import Comparison, Group, ResidualVerdict, compare
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
-from ._diagnose import ScoreTest, score_test
+from ._diagnose import (
+    CandidateRanking,
+    DiagnoseOptions,
+    Diagnosis,
+    DiagnosisStep,
+    ScoreTest,
+    cross_validated_rmse,
+    default_candidates,
+    diagnose,
+    score_test,
+)
 from ._effects import (
     BUILT_IN_EFFECTS,
+    MODEL_EXTENSIONS,
     ClampCompliance,
     Effect,
     EffectParameter,
+    RadiusScaling,
     Reinforcement,
     SelfWeight,
     Shear,
@@ -31,8 +47,11 @@ from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, bat
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
 
 __all__ = [
-    "BUILT_IN_EFFECTS", "ClampCompliance", "Effect", "EffectParameter", "Reinforcement",
-    "SelfWeight", "Shear", "ScoreTest", "score_test",
+    "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
+    "RadiusScaling", "Reinforcement", "SelfWeight", "Shear", "ScoreTest", "score_test",
+    "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
+    "ResidualVerdict", "compare", "cross_validated_rmse", "default_candidates", "diagnose",
+    "fit_problem",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
     "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",

@@ -157,8 +157,8 @@ def _model_forces(vector, reference, batch_arrays, *, rig, scaling, effects=()):
         instances.append(effect(*[vector[k + j] for j in range(count)]))
         k += count
     pressure, radius, length, deflection = batch_arrays
-    prediction = rig.predict(TubeModel(law, effects=tuple(instances)), pressure, radius, length,
-                             deflection)
+    model = TubeModel(law, effects=tuple(instances), reference=(reference[0], reference[1]))
+    prediction = rig.predict(model, pressure, radius, length, deflection)
     return prediction.force, prediction
 
 
@@ -201,7 +201,7 @@ class FitProblem:
     names: tuple[str, ...]
     free_index: tuple[int, ...]
     base: np.ndarray
-    lower: np.ndarray
+    lower: np.ndarray  # [n_names] bounds of every coordinate (free or not)
     upper: np.ndarray
     prior_mean: np.ndarray  # [n_names] (sd inf: no prior)
     prior_sd: np.ndarray
@@ -212,6 +212,19 @@ class FitProblem:
     @property
     def free_names(self) -> list[str]:
         return [self.names[i] for i in self.free_index]
+
+    @property
+    def free_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        free = np.asarray(self.free_index)
+        return self.lower[free], self.upper[free]
+
+    def with_free(self, names, vector) -> FitProblem:
+        """The same problem (same compiled model) with the coordinates ``names`` free and
+        every other coordinate held at its value in the full ``vector``."""
+        index = tuple(sorted(self.names.index(name) for name in set(names)))
+        if not index:
+            raise ValueError("nothing to fit: no free coordinates")
+        return dataclasses.replace(self, free_index=index, base=np.array(vector, float))
 
     def batch_arrays(self):
         b = self.batch
@@ -315,10 +328,9 @@ def make_problem(data: MeasuredData, scaling: PivotScaling | None = None,
     noise = estimate_noise(data) if options.noise_N is None else float(options.noise_N)
     if not noise > 0:
         raise ValueError(f"the force noise must be > 0 [N], got {noise}")
-    free = np.asarray(free_index)
     return FitProblem(
         data=data, batch=batch, rig=rig, scaling=scaling, reference=reference, names=names,
-        free_index=free_index, base=base, lower=lower[free], upper=upper[free],
+        free_index=free_index, base=base, lower=lower, upper=upper,
         prior_mean=prior_mean, prior_sd=prior_sd, noise=noise,
         noise_given=options.noise_N is not None, effects=effects)
 
@@ -348,28 +360,30 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         counts["jacobian"] += 1
         r, jac, pred = _residuals_and_jacobian(jnp.asarray(problem.full(x)),
                                                *problem.residual_args(robust), **static)
-        return np.asarray(r), np.asarray(jac)[:, np.asarray(problem.free_index)], pred
+        full = np.asarray(jac)  # every coordinate's column (score tests, diagnosis)
+        return np.asarray(r), full[:, np.asarray(problem.free_index)], pred, full
 
     def ok(r, jac, pred):
         return (bool(np.all(np.asarray(pred.converged)[problem.batch.mask]))
                 and bool(np.all(np.isfinite(r))) and bool(np.all(np.isfinite(jac))))
 
-    x = np.clip(np.asarray(x0, float), problem.lower, problem.upper)
-    r, jac, pred = evaluate(x)
+    lower, upper = problem.free_bounds
+    x = np.clip(np.asarray(x0, float), lower, upper)
+    r, jac, pred, full = evaluate(x)
     if not ok(r, jac, pred):
         bad = int(np.sum(~np.asarray(pred.converged)[problem.batch.mask]))
         raise FitError(f"the equilibrium solves failed at the initial guess ({bad} points did "
                        "not converge); check the data units (bar, mm, m, N)")
-    def reweighted(x, r, jac, pred):
+    def reweighted(x, r, jac, pred, full):
         # Huber loss by iteratively reweighted least squares: weights from these residuals.
         nonlocal robust
         if options.loss != "huber":
-            return r, jac, pred
+            return r, jac, pred, full
         robust = _huber_weight(r[:n_data].reshape(problem.batch.force.shape),
                                options.huber_threshold)
         return evaluate(x)
 
-    r, jac, pred = reweighted(x, r, jac, pred)
+    r, jac, pred, full = reweighted(x, r, jac, pred, full)
     cost = 0.5 * float(r @ r)
     jtj = jac.T @ jac
     mu = 1e-3  # dimensionless: the damping term is mu * diag(J^T J) (Marquardt scaling)
@@ -385,10 +399,10 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         accepted = False
         while not accepted:
             step = np.linalg.solve(jtj + mu * np.diag(diag), -g)
-            x_new = np.clip(x + step, problem.lower, problem.upper)
+            x_new = np.clip(x + step, lower, upper)
             step = x_new - x
             predicted = -(g @ step + 0.5 * step @ (jtj @ step))
-            r_new, jac_new, pred_new = evaluate(x_new)
+            r_new, jac_new, pred_new, full_new = evaluate(x_new)
             if ok(r_new, jac_new, pred_new) and predicted > 0:
                 cost_new = 0.5 * float(r_new @ r_new)
                 rho = (cost - cost_new) / predicted
@@ -410,7 +424,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         cost_before = cost
         small_step = float(np.max(np.abs(step))) <= 1e-10 * (1.0 + float(np.max(np.abs(x))))
         x = x_new
-        r, jac, pred = reweighted(x, r_new, jac_new, pred_new)
+        r, jac, pred, full = reweighted(x, r_new, jac_new, pred_new, full_new)
         cost = 0.5 * float(r @ r)
         jtj = jac.T @ jac
         if bar is not None:
@@ -425,7 +439,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
             break
     return x, cost, dict(message=message, converged=converged, iterations=iteration,
                          evaluations=counts["jacobian"],
-                         r=r, jac=jac, prediction=pred, robust=robust)
+                         r=r, jac=jac, full_jacobian=full, prediction=pred, robust=robust)
 
 
 def _rmse(problem: FitProblem, prediction) -> float:
@@ -440,14 +454,28 @@ def fit(data: MeasuredData, scaling: PivotScaling | None = None,
     """Fit the pivot scaling (and the parameters of ``effects``, :class:`fitting.Effect`
     subclasses) to every curve of ``data`` at once; returns a :class:`fitting.FitResult`
     (estimates, uncertainties, identifiability, RMSE, report)."""
-    from ._result import FitResult
-
     options = options or FitOptions()
+    _check_options(options)
+    problem = make_problem(data, scaling, rig, options, initial, effects)
+    return fit_problem(problem, options)
+
+
+def _check_options(options: FitOptions) -> None:
     if options.loss not in ("linear", "huber"):
         raise ValueError(f"loss must be 'linear' or 'huber', got {options.loss!r}")
     if options.multistart < 1:
         raise ValueError(f"multistart must be >= 1, got {options.multistart}")
-    problem = make_problem(data, scaling, rig, options, initial, effects)
+
+
+def fit_problem(problem: FitProblem, options: FitOptions | None = None, description: str =
+                "fit (LM iterations)"):
+    """Levenberg-Marquardt on a set-up :class:`FitProblem` from its ``base`` vector (the free
+    coordinates start there; e.g. ``problem.with_free(names, previous.vector)`` refits from
+    a previous optimum with more coordinates free, on the same compiled model)."""
+    from ._result import FitResult
+
+    options = options or FitOptions()
+    _check_options(options)
     x0 = problem.base[np.asarray(problem.free_index)]
     rng = np.random.default_rng(options.seed)
     starts = [x0] + [
@@ -457,7 +485,7 @@ def fit(data: MeasuredData, scaling: PivotScaling | None = None,
     bar = None
     if options.progress:
         from tqdm.auto import tqdm
-        bar = tqdm(total=options.max_iterations * len(starts), desc="fit (LM iterations)",
+        bar = tqdm(total=options.max_iterations * len(starts), desc=description,
                    unit="it", leave=False)
     t0 = time.perf_counter()
     best, costs, totals = None, [], {"evaluations": 0, "iterations": 0}
@@ -515,4 +543,4 @@ def specimen_arrays(pressure: Sequence[float], radius: Sequence[float],
 
 
 __all__ = ["FitError", "FitOptions", "Prior", "Convergence", "estimate_noise", "fit",
-           "make_problem", "unpad"]
+           "fit_problem", "make_problem", "unpad"]

@@ -29,6 +29,7 @@ the README for a worked example.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import ClassVar
 
 import equinox as eqx
@@ -57,7 +58,9 @@ class RigSpecimen:
     pressure [Pa], radius [m], length [m]; ``tube``: index of the specimen tube in the
     structure's tubes; ``clamp``: index of the clamp-spring tube or None; ``clamp_length``:
     that tube's length [m] (its joint's tributary length is half of it); ``tip_node``: the
-    global index of the loaded tip node; ``gravity``: [3] m/s^2.
+    global index of the loaded tip node; ``gravity``: [3] m/s^2; ``reference_pressure``
+    [Pa], ``reference_radius`` [m]: the specimen at which the fitted pivot coordinates are
+    referenced (the data's geometric mean; None outside a fit).
     """
 
     pressure: object
@@ -68,15 +71,33 @@ class RigSpecimen:
     clamp_length: object
     tip_node: int = -1
     gravity: object = (0.0, 0.0, -9.81)
+    reference_pressure: object = None
+    reference_radius: object = None
 
 
 class Effect(eqx.Module):
     """Base class of effects. Subclasses define fields (the parameters), the class
-    attributes ``name``, ``parameters`` and optionally ``features``, and :meth:`apply`."""
+    attributes ``name``, ``parameters`` and optionally ``features``, ``kind``,
+    ``separated_by`` and ``signature``, and :meth:`apply`.
+
+    Class attributes:
+        name: how the diagnosis reports it.
+        parameters: :class:`EffectParameter` per field, in order.
+        features: rig degrees of freedom it needs (``"shear"``, ``"clamp_spring"``).
+        kind: ``"physical"`` (a physical effect) or ``"model_structure"`` (an extension of
+            the law's form, such as ``radius_scaling``).
+        separated_by: specimen quantities (``"pressure"``, ``"radius"``, ``"length"``) along
+            which this effect's signature differs from the bending law's: data that vary
+            them tell it apart. The diagnosis names them when the effect is confounded.
+        signature: one sentence on how the effect shows in force-deflection curves.
+    """
 
     name: ClassVar[str] = ""
     parameters: ClassVar[tuple[EffectParameter, ...]] = ()
     features: ClassVar[frozenset[str]] = frozenset()
+    kind: ClassVar[str] = "physical"
+    separated_by: ClassVar[tuple[str, ...]] = ()
+    signature: ClassVar[str] = ""
 
     def apply(self, params: jt.StructureParameters,
               specimen: RigSpecimen) -> jt.StructureParameters:
@@ -102,6 +123,9 @@ class Reinforcement(Effect):
     name: ClassVar[str] = "reinforcement"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
         EffectParameter("stiffness", "N m^2", 0.0, 0.0, 1e4, 10.0),)
+    separated_by: ClassVar[tuple[str, ...]] = ("pressure", "radius")
+    signature: ClassVar[str] = ("stiffness that does not grow with p r^3: relatively larger at "
+                                "low pressure and small radius, delays wrinkling")
     stiffness: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -116,6 +140,9 @@ class SelfWeight(Effect):
     name: ClassVar[str] = "self_weight"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
         EffectParameter("mass_per_length", "kg/m", 0.0, 0.0, 50.0, 0.3),)
+    separated_by: ClassVar[tuple[str, ...]] = ("length", "pressure")
+    signature: ClassVar[str] = ("a root moment w g L^2 / 2 already there at zero load: early "
+                                "wrinkling of long, low-pressure tubes")
     mass_per_length: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -130,6 +157,9 @@ class ClampCompliance(Effect):
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
         EffectParameter("compliance", "rad/(N m)", 0.0, 0.0, 1.0, 1e-4),)
     features: ClassVar[frozenset[str]] = frozenset({"clamp_spring"})
+    separated_by: ClassVar[tuple[str, ...]] = ("length",)
+    signature: ClassVar[str] = ("a deflection c P L^2 that grows like L^2, not L^3, and stays "
+                                "linear while the tube wrinkles")
     compliance: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -143,10 +173,54 @@ class Shear(Effect):
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
         EffectParameter("flexibility", "m/N", 0.0, 0.0, 1.0, 1e-4),)
     features: ClassVar[frozenset[str]] = frozenset({"shear"})
+    separated_by: ClassVar[tuple[str, ...]] = ("length", "pressure")
+    signature: ClassVar[str] = ("a compliance L / (p pi r^2 + k G A) that grows like L, not "
+                                "L^3: relatively larger for short tubes at low pressure")
     flexibility: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
         return set_shear_flexibility(params, self.flexibility)
+
+
+class RadiusScaling(Effect):
+    """Model-structure extension: the pivots' radius exponent freed from the paper's ``3 B``.
+
+    The paper's scaling ``y_i = A_i (p r^3)^B_i`` ties the radius exponent of every pivot
+    to three times its pressure exponent. The separate form ``y_i = A_i p^B_i r^C_i``
+    frees it (the tension-field tube, for instance, has curvature pivots
+    ``kappa_w = p / (2 E t)`` independent of r: ``C = 0``, ``B = 1``). This candidate
+    nests the paper form in the separate form with one extra exponent per coordinate,
+    ``C_i = 3 B_i + D`` (``D_kappa`` for every curvature pivot, ``D_M`` for every moment
+    pivot; null 0 is the paper form): each pivot increment is multiplied by
+    ``(r / r_ref)^D`` at the specimen radius ``r`` (``r_ref`` the fit's reference radius,
+    so ``D`` does not move the pivots at the reference specimen). Per-pivot ``C_i`` is
+    ``--form separate``. Acts on a :class:`jaxtube.SplineLaw` of the paper form.
+    """
+
+    name: ClassVar[str] = "radius_scaling"
+    parameters: ClassVar[tuple[EffectParameter, ...]] = (
+        EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, 0.1),
+        EffectParameter("moment_radius_excess", "-", 0.0, -4.0, 4.0, 0.1))
+    kind: ClassVar[str] = "model_structure"
+    separated_by: ClassVar[tuple[str, ...]] = ("radius",)
+    signature: ClassVar[str] = ("pivots that scale with the radius differently from (p r^3)^B: "
+                                "curves at different radii misfit in opposite directions")
+    curvature_radius_excess: jnp.ndarray = eqx.field(converter=jnp.asarray)
+    moment_radius_excess: jnp.ndarray = eqx.field(converter=jnp.asarray)
+
+    def apply(self, params, specimen):
+        law = params.bending_laws[specimen.tube]
+        if not isinstance(law, jt.SplineLaw) or law.curvature_radius_exponent is not None:
+            raise TypeError("radius_scaling acts on a paper-form SplineLaw, got "
+                            f"{type(law).__name__}")
+        if specimen.reference_radius is None:
+            raise ValueError("radius_scaling needs the fit's reference radius")
+        ratio = specimen.radius / specimen.reference_radius
+        law = eqx.tree_at(lambda old: (old.curvature_scale, old.moment_scale), law,
+                          (law.curvature_scale * ratio**self.curvature_radius_excess,
+                           law.moment_scale * ratio**self.moment_radius_excess))
+        return eqx.tree_at(lambda p: p.bending_laws, params,
+                           _replace_tube_law(params.bending_laws, specimen.tube, law))
 
 
 # Rigid limits used when a rig provides a degree of freedom whose effect is at its null value:
@@ -175,21 +249,40 @@ def set_shear_flexibility(params, flexibility):
 BUILT_IN_EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls for cls in (Shear, Reinforcement, ClampCompliance, SelfWeight)}
 
+#: Candidates of the diagnosis besides the physical effects (model-structure extensions).
+MODEL_EXTENSIONS: dict[str, type[Effect]] = {RadiusScaling.name: RadiusScaling}
+
 
 def resolve_effect(text: str) -> type[Effect]:
-    """A built-in effect by name, or a user's ``path/to/file.py:ClassName`` (clear errors)."""
+    """A built-in effect by name, or a user's ``path/to/file.py:ClassName`` (clear errors).
+
+    A user's file is imported once per resolved path and class name, so the same effect
+    named twice (the API and the CLI in one process) is the same class and the models built
+    with it share their compilation."""
     if text in BUILT_IN_EFFECTS:
         return BUILT_IN_EFFECTS[text]
+    if text in MODEL_EXTENSIONS:
+        return MODEL_EXTENSIONS[text]
     path, sep, class_name = text.rpartition(":")
     if not sep or not path.endswith(".py"):
-        raise ValueError(f"effect {text!r}: expected one of {sorted(BUILT_IN_EFFECTS)} or "
+        raise ValueError(f"effect {text!r}: expected one of "
+                         f"{sorted(BUILT_IN_EFFECTS) + sorted(MODEL_EXTENSIONS)} or "
                          "path/to/file.py:ClassName")
-    import importlib.util
     from pathlib import Path
 
     file = Path(path)
     if not file.is_file():
         raise ValueError(f"effect {text!r}: file {file} not found")
+    return _user_effect(str(file.resolve()), file.stat().st_mtime_ns, class_name)
+
+
+@functools.lru_cache(maxsize=32)
+def _user_effect(path: str, modified: int, class_name: str) -> type[Effect]:
+    import importlib.util
+    from pathlib import Path
+
+    file = Path(path)
+    text = f"{path}:{class_name}"
     spec = importlib.util.spec_from_file_location(f"jaxtube_user_effect_{file.stem}", file)
     module = importlib.util.module_from_spec(spec)
     try:

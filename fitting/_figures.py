@@ -82,3 +82,124 @@ def prediction_figure(deflection_mm, force, sd, label: str) -> Figure:
     axes.grid(alpha=0.3)
     axes.legend()
     return figure
+
+
+# --------------------------------------------------------------------------------------------
+# Diagnosis figures
+# --------------------------------------------------------------------------------------------
+
+GROUP_TITLES = {"pressure": "by pressure", "radius": "by radius", "length": "by length",
+                "regime": "by worst joint regime (model)",
+                "wrinkled_extent": "by how far wrinkling reaches along the tube"}
+
+
+def where_it_fails_figure(result: FitResult, comparison, title: str) -> Figure:
+    """Residuals against deflection for every curve, then grouped by pressure, radius,
+    length, the model's regime at each point and the wrinkled extent: each group's points,
+    its RMSE (bar) and bias (diamond), against the +-2 sigma noise band."""
+    from ._compare import point_table
+
+    table = point_table(result)
+    names = [curve.name for curve in result.problem.data]
+    figure = Figure(figsize=(15, 8.4), layout="constrained")
+    axes = figure.subplots(2, 3).ravel()
+    noise = result.noise
+    ax = axes[0]
+    for c, name in enumerate(names):
+        keep = table["curve"] == c
+        order = np.argsort(np.abs(table["deflection"][keep]))
+        ax.plot(np.abs(table["deflection"][keep])[order] * 1e3,
+                table["residual"][keep][order], "o-", ms=3, lw=0.8, label=name)
+    ax.axhspan(-2 * noise, 2 * noise, color="0.88", lw=0)
+    ax.axhline(0, color="0.4", lw=0.8)
+    ax.set_xlabel("tip deflection [mm]")
+    ax.set_ylabel("model - measured [N]")
+    ax.set_title("residuals along each curve", fontsize=10)
+    ax.legend(fontsize=7, ncol=2)
+    for ax, quantity in zip(axes[1:], GROUP_TITLES):
+        groups = comparison.groups_of(quantity)
+        ax.axhspan(-2 * noise, 2 * noise, color="0.88", lw=0, label="+-2 noise sd")
+        ax.axhline(0, color="0.4", lw=0.8)
+        for k, group in enumerate(groups):
+            if quantity == "wrinkled_extent":
+                edges = _extent_bin(table["extent"], group.value)
+                keep = edges
+            elif quantity == "regime":
+                keep = table["regime"] == group.value
+            else:
+                keep = table[quantity] == group.value
+            jitter = (np.random.default_rng(k).random(int(keep.sum())) - 0.5) * 0.3
+            ax.plot(k + jitter, table["residual"][keep], "o", ms=2.5, color="C0", alpha=0.6)
+            ax.bar(k, group.rmse_N, width=0.55, color="C3", alpha=0.25,
+                   label="RMSE" if k == 0 else None)
+            ax.plot(k, group.bias_N, "D", color="C3", ms=6, label="bias" if k == 0 else None)
+        ax.set_xticks(range(len(groups)), [g.label for g in groups], fontsize=8,
+                      rotation=20 if quantity == "wrinkled_extent" else 0)
+        ax.set_title(GROUP_TITLES[quantity], fontsize=10)
+        ax.set_ylabel("model - measured [N]")
+        ax.grid(alpha=0.3, axis="y")
+        if quantity == "pressure":
+            ax.legend(fontsize=7)
+    figure.suptitle(f"{title}: where the model fails (RMSE {comparison.rmse_N:.3g} N, noise "
+                    f"{noise:.3g} N). {comparison.verdict.words}", fontsize=9, wrap=True)
+    return figure
+
+
+def _extent_bin(extent: np.ndarray, low: float) -> np.ndarray:
+    from ._compare import EXTENT_EDGES
+
+    i = list(EXTENT_EDGES).index(low)
+    return (extent >= EXTENT_EDGES[i]) & (extent < EXTENT_EDGES[i + 1])
+
+
+def ranking_figure(diagnosis) -> Figure:
+    """One panel per ranking (each addition, then the final one): the BIC drop of every
+    candidate's refit (log scale), significant ones filled, the threshold dashed, and the
+    score statistic written beside each bar."""
+    rankings = [(f"step {i + 1}: added {s.added}", s.candidates)
+                for i, s in enumerate(diagnosis.steps)]
+    if diagnosis.final_candidates:
+        rankings.append(("final: none significant" if diagnosis.stop_reason.startswith("no")
+                         else f"final ({diagnosis.stop_reason})", diagnosis.final_candidates))
+    count = max(len(rankings), 1)
+    figure = Figure(figsize=(5.2 * count, 3.8), layout="constrained")
+    axes = np.atleast_1d(figure.subplots(1, count))
+    for ax, (title, rows) in zip(axes, rankings):
+        labels = [row.effect for row in rows][::-1]
+        drops = [max(-row.delta_bic, 0.1) if math.isfinite(row.delta_bic) else 0.1
+                 for row in rows][::-1]
+        colours = ["C2" if row.significant else "0.6" for row in rows][::-1]
+        ax.barh(range(len(rows)), drops, color=colours)
+        for k, row in enumerate(rows[::-1]):
+            ax.text(drops[k] * 1.1, k, f"S = {row.score_statistic:.3g}", va="center",
+                    fontsize=7)
+        ax.axvline(diagnosis.options.bic_threshold, color="k", ls="--", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_yticks(range(len(rows)), labels, fontsize=8)
+        ax.set_xlabel("BIC drop of the refit (green: significant)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, axis="x")
+    verdict = ", ".join(diagnosis.verdict) or "nothing missing"
+    figure.suptitle(f"candidates ranked; verdict: {verdict}", fontsize=10)
+    return figure
+
+
+def before_after_figure(diagnosis) -> Figure:
+    """RMSE of every curve for the baseline and after each addition, against the noise."""
+    models = [("baseline", diagnosis.baseline)] + [
+        ("+ " + s.added, s.fit) for s in diagnosis.steps]
+    names = [curve.name for curve in diagnosis.baseline.problem.data]
+    figure = Figure(figsize=(max(6.0, 1.1 * len(names) + 2), 4.2), layout="constrained")
+    ax = figure.add_subplot()
+    width = 0.8 / len(models)
+    for k, (label, result) in enumerate(models):
+        rmse = [row["rmse_N"] for row in result.curve_errors()]
+        ax.bar(np.arange(len(names)) + (k - (len(models) - 1) / 2) * width, rmse, width,
+               label=f"{label} (RMSE {result.rmse:.3g} N)")
+    ax.axhline(diagnosis.noise, color="k", ls="--", lw=1, label=f"noise {diagnosis.noise:.3g} N")
+    ax.set_xticks(range(len(names)), names, fontsize=8, rotation=15)
+    ax.set_ylabel("RMSE [N]")
+    ax.set_title("error per curve, before and after each addition", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    return figure

@@ -75,6 +75,10 @@ class FitResult:
         force: model forces per curve, original point order ``[list of [P_c]]`` [N].
         joint_regime: per curve ``[P_c, J]``; joint_position ``[J]`` (0 clamp .. 1 tip).
         convergence: the optimiser's report.
+        residual: ``[n_data + n_names]`` residuals at the optimum in noise units (data rows
+            in the padded ``[C, P]`` order, then prior rows).
+        jacobian: ``[n_data + n_names, n_names]`` their derivatives w.r.t. every coordinate,
+            free or held (score tests and the diagnosis use the held columns).
     """
 
     problem: FitProblem
@@ -88,6 +92,8 @@ class FitResult:
     joint_regime: tuple[np.ndarray, ...]
     joint_position: np.ndarray
     convergence: Convergence
+    residual: np.ndarray
+    jacobian: np.ndarray
 
     # -- construction --------------------------------------------------------------------
 
@@ -124,7 +130,8 @@ class FitResult:
                    residual_variance=residual_variance, force=tuple(force),
                    joint_regime=tuple(regime),
                    joint_position=np.asarray(pred.joint_position)[0, 0],
-                   convergence=convergence)
+                   convergence=convergence, residual=np.asarray(r),
+                   jacobian=np.asarray(report["full_jacobian"]))
 
     # -- model ------------------------------------------------------------------------------
 

@@ -47,11 +47,14 @@ class TubeModel(eqx.Module):
         bending_law: moment-curvature law of bending (any :class:`jaxtube.AbstractMomentLaw`).
         torsion_law: law of torsion (a cantilever with a vertical tip load does not twist).
         effects: tuple of :class:`fitting.Effect` instances, applied in order.
+        reference: ``(pressure [Pa], radius [m])`` at which the fitted coordinates are
+            referenced (effects such as ``radius_scaling`` see it), or None.
     """
 
     bending_law: jt.AbstractMomentLaw
     torsion_law: jt.AbstractMomentLaw = jt.LinearLaw(1.0)
     effects: tuple = ()
+    reference: tuple | None = None
 
 
 class CurveBatch(NamedTuple):
@@ -190,9 +193,11 @@ class CantileverRig:
              (model.torsion_law,) * tubes),
         )
         clamp = structure.tube_names.index("clamp") if "clamp" in structure.tube_names else None
+        reference = (None, None) if model.reference is None else model.reference
         specimen = RigSpecimen(pressure, radius, length, tube=0, clamp=clamp,
                                clamp_length=CLAMP_FRACTION * length,
-                               tip_node=structure.node_id("tube:end"), gravity=params.gravity)
+                               tip_node=structure.node_id("tube:end"), gravity=params.gravity,
+                               reference_pressure=reference[0], reference_radius=reference[1])
         if clamp is not None:  # rigid until an effect says otherwise
             params = set_clamp_compliance(params, specimen, 0.0)
         if "shear" in self.features:

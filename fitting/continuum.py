@@ -534,6 +534,8 @@ class CantileverModel:
             ``M_root / k_clamp``; None = rigid clamp.
         reinforcement_stiffness: ``EI_r`` [N m^2] in parallel with the law (0 = none).
         mass_per_length: w [kg/m] for self-weight (0 = weightless).
+        tip_mass: a point mass [kg] hanging at the tip (its weight ``tip_mass g`` is a dead
+            tip load present before loading, not part of the measured load).
         gravity: g [m/s^2].
         rtol: relative tolerance of the ODE solver; the absolute tolerances are ``rtol``
             times L (positions), 1 rad (angle) and a moment scale.
@@ -545,6 +547,7 @@ class CantileverModel:
     clamp_stiffness: float | None = None
     reinforcement_stiffness: float = 0.0
     mass_per_length: float = 0.0
+    tip_mass: float = 0.0
     gravity: float = GRAVITY
     rtol: float = 1e-10
 
@@ -557,8 +560,9 @@ class CantileverModel:
             raise ValueError(
                 f"clamp_stiffness must be > 0 [N m/rad] or None, got {self.clamp_stiffness}"
             )
-        if self.reinforcement_stiffness < 0.0 or self.mass_per_length < 0.0:
-            raise ValueError("reinforcement_stiffness and mass_per_length must be >= 0")
+        if min(self.reinforcement_stiffness, self.mass_per_length, self.tip_mass) < 0.0:
+            raise ValueError("reinforcement_stiffness, mass_per_length and tip_mass must be "
+                             ">= 0")
 
     # -- internals ----------------------------------------------------------------------
 
@@ -588,6 +592,7 @@ class CantileverModel:
         """Integrate root (s = 0) to tip (s = L) from a trial root curvature [1/m]."""
         length = self.length
         weight = self._weight_per_length
+        tip_load = load + self.tip_mass * self.gravity  # measured load + the hanging mass
         shear = self.shear_stiffness
         law = self._bending_law
         curvature = law.curvature
@@ -595,7 +600,7 @@ class CantileverModel:
 
         def rhs(s, state):
             theta, moment = state[2], state[3]
-            resultant = load + weight * (length - s)  # V: downward resultant beyond s [N]
+            resultant = tip_load + weight * (length - s)  # V: downward resultant beyond s
             # Past the moment limit (or at absurd curvature) the trial is running away
             # anyway; a capped curvature lets it turn past vertical in a few steps.
             kappa = float(curvature(float(moment))) if abs(moment) < limit else math.inf
@@ -657,7 +662,8 @@ class CantileverModel:
         # First upper bracket: the curvature of the small-deflection root moment, which
         # large deflections only reduce (shorter lever arms).
         law = self._bending_law
-        root_moment = abs(load) * self.length + 0.5 * self._weight_per_length * self.length**2
+        root_moment = (abs(load + self.tip_mass * self.gravity) * self.length
+                       + 0.5 * self._weight_per_length * self.length**2)
         root_moment = min(root_moment, (1.0 - 1e-6) * law.moment_limit)
         first = abs(float(law.curvature(root_moment)))
         lo, hi = 0.0, sign * (first if first > 0.0 else self._curvature_scale)
@@ -673,8 +679,9 @@ class CantileverModel:
 
     @functools.cached_property
     def _unloaded(self) -> tuple[float, float]:
-        """Root curvature [1/m] and tip sag [m] of the unloaded (self-weight only) shape."""
-        if self._weight_per_length == 0.0:
+        """Root curvature [1/m] and tip sag [m] of the unloaded shape (self-weight and tip
+        mass only)."""
+        if self._weight_per_length == 0.0 and self.tip_mass == 0.0:
             return 0.0, 0.0
         root_curvature, shot = self._shoot(0.0)
         return root_curvature, shot.y_tip

@@ -122,7 +122,19 @@ def _add_predict(subparsers) -> None:
     add_predict(subparsers)
 
 
-_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict)
+def _add_diagnose(subparsers) -> None:
+    from fitting._diagnose_cli import add_diagnose
+
+    add_diagnose(subparsers)
+
+
+def _add_demo(subparsers) -> None:
+    from fitting._diagnose_cli import add_demo
+
+    add_demo(subparsers)
+
+
+_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

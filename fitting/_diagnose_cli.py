@@ -1,0 +1,234 @@
+"""``jaxtube diagnose`` and ``jaxtube demo`` (registered by :mod:`jaxtube._cli`).
+
+``jaxtube diagnose DATA.csv --out DIR [--effect NAME|FILE.py:Class ...]``: the whole loop of
+:func:`fitting.diagnose` (baseline fit with the paper scaling, the comparison and where it
+fails, the ranking of the candidates, the additions step by step) on a measurement file
+(format in :mod:`fitting._data`). Prints the before/after table and the verdict, and writes
+into DIR:
+
+- ``diagnosis.json``: noise, baseline, steps (each with ``added``, ``rmse_N`` and the ranked
+  ``candidates``: ``effect``, ``rmse_N``, ``delta_bic``, ``score_statistic``, ...), verdict,
+  statements and the final model (format ``jaxtube-diagnosis``, version 1);
+- ``report.txt``: what the terminal shows;
+- ``fit_0_baseline.png``, ``fit_1_<effect>.png``, ...: measured against model, with bands and
+  residuals, at each step;
+- ``where_it_fails.png`` (baseline) and ``where_it_fails_final.png``: residuals by curve,
+  pressure, radius, length, regime and wrinkled extent;
+- ``ranking.png`` (BIC drop and score of every candidate at every step) and
+  ``before_after.png`` (error per curve, baseline and after each addition);
+- ``parameters.json``: the final model's law, as ``jaxtube fit`` writes it.
+
+``jaxtube demo [--out DIR]``: the same on the bundled dataset
+``jaxtube/data/demo_hidden_effect.csv`` (a hidden effect, made by the independent continuum
+solver; see ``jaxtube/data/README.md``), then says what was hidden.
+
+Exit codes: 0 success; 1 the diagnosis ran but a fit did not converge (outputs written and
+marked); 2 bad input (nothing written).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from importlib import resources
+from pathlib import Path
+
+from jaxtube._cli import positive_float, positive_int, write_directory
+
+from ._calibrate import FitError
+from ._commands import _bad_out, _pivots
+from ._data import DataError, load_measurements
+from ._effects import resolve_effect
+from ._scaling import PivotScaling
+
+DEMO_DATA = "demo_hidden_effect.csv"
+#: What the bundled demo dataset hides (jaxtube/data/README.md); printed after the verdict.
+DEMO_TRUTH = ("reinforcement", "a pressure-independent bending stiffness EI_r = 30 N m^2 in "
+                               "parallel with the tube's law")
+
+
+def add_diagnose(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "diagnose", help="find which physical effect the model lacks, add it, refit",
+        description="Fit the bending law, compare with the measurements, rank candidate "
+                    "effects (score tests, refits, BIC, cross-validation), add the "
+                    "significant ones one at a time and report before/after.")
+    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
+                                                "radius_m,length_m,deflection_mm,force_N)")
+    _add_common(parser, default_out=None)
+    parser.set_defaults(run=run_diagnose)
+
+
+def add_demo(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "demo", help="run the diagnosis on the bundled dataset with a hidden effect",
+        description="The whole diagnosis on jaxtube/data/demo_hidden_effect.csv (made by the "
+                    "independent continuum solver with a hidden effect).")
+    _add_common(parser, default_out=Path("out/demo"))
+    parser.set_defaults(run=run_demo, data=None)
+
+
+def _add_common(parser, default_out) -> None:
+    parser.add_argument("--out", type=Path, required=default_out is None, default=default_out,
+                        help="output directory" + (f" (default {default_out})"
+                                                   if default_out else ""))
+    parser.add_argument("--effect", action="append", default=[], metavar="NAME|FILE.py:Class",
+                        help="an extra candidate: a user's Effect subclass (repeatable)")
+    parser.add_argument("--candidates", default=None, metavar="NAME,NAME",
+                        help="restrict the candidates (default: radius_scaling, shear, "
+                             "reinforcement, clamp_compliance, self_weight, and --effect ones)")
+    parser.add_argument("--noise-N", type=positive_float, default=None,
+                        help="force noise standard deviation [N] (default: estimated from "
+                             "the scatter of the data, without a model)")
+    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+                        help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
+    parser.add_argument("--segments", type=positive_int, default=None,
+                        help="rigid segments of the model tube (default 12)")
+    parser.add_argument("--max-additions", type=positive_int, default=3)
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def run_demo(args) -> int:
+    args.data = Path(str(resources.files("jaxtube") / "data" / DEMO_DATA))
+    print(f"jaxtube demo: diagnosing {args.data}\n  six bench-style cantilever curves made by "
+          "the independent continuum shooting solver, with one physical effect hidden in "
+          "them; the model starts without any effect.", file=sys.stderr)
+    code = run_diagnose(args)
+    if code != 2:
+        print(f"\nhidden in the demo data: {DEMO_TRUTH[0]} ({DEMO_TRUTH[1]}); "
+              f"see jaxtube/data/README.md")
+    return code
+
+
+def run_diagnose(args) -> int:
+    from . import _diagnose
+    from ._rig import DEFAULT_SEGMENTS, CantileverRig
+
+    started = time.perf_counter()
+    if _bad_out(args.out):
+        return 2
+    try:
+        data = load_measurements(args.data)
+    except DataError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    try:
+        scaling = PivotScaling(pivots_per_regime=args.pivots)
+        user = tuple(resolve_effect(text) for text in args.effect)
+        candidates = _diagnose.default_candidates(scaling, user)
+        if args.candidates:
+            wanted = [name.strip() for name in args.candidates.split(",") if name.strip()]
+            known = {c.name: c for c in candidates}
+            unknown = [name for name in wanted if name not in known]
+            if unknown:
+                raise ValueError(f"--candidates: unknown {unknown}; expected names from "
+                                 f"{sorted(known)}")
+            candidates = tuple(known[name] for name in wanted)
+        options = _diagnose.DiagnoseOptions(noise_N=args.noise_N,
+                                            max_additions=args.max_additions,
+                                            progress=not args.quiet)
+        rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
+        print(f"diagnosing {len(data)} curves ({data.point_count} points) from {args.data}; "
+              f"candidates: {', '.join(c.name for c in candidates)}; compiling the model "
+              "(the first evaluation takes a while) ...", file=sys.stderr, flush=True)
+        diagnosis = _diagnose.diagnose(data, scaling=scaling, rig=rig, options=options,
+                                       candidates=candidates)
+    except (ValueError, FitError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    report = diagnosis_report(diagnosis)
+    document = diagnosis.to_json()
+    document["wall_time_s"] = round(time.perf_counter() - started, 3)
+    write_directory(args.out, _writers(diagnosis, document, report))
+    print(report)
+    print(f"wrote diagnosis.json, report.txt, parameters.json and figures to {args.out}")
+    converged = all(r.convergence.converged for r in
+                    [diagnosis.baseline] + [s.fit for s in diagnosis.steps])
+    return 0 if converged else 1
+
+
+def _writers(diagnosis, document, report) -> dict:
+    from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
+
+    models = [("baseline", diagnosis.baseline)] + [(s.added, s.fit) for s in diagnosis.steps]
+    figures = {}
+    for k, (label, result) in enumerate(models):
+        added = " + ".join(["baseline"] + [s.added for s in diagnosis.steps[:k]])
+        figures[f"fit_{k}_{label}.png"] = fit_figure(
+            result, title=f"step {k}: {added}: RMSE {result.rmse:.3g} N (noise "
+                          f"{diagnosis.noise:.3g} N)")
+    figures["where_it_fails.png"] = where_it_fails_figure(
+        diagnosis.baseline, diagnosis.baseline_comparison, "baseline")
+    if diagnosis.steps:
+        figures["where_it_fails_final.png"] = where_it_fails_figure(
+            diagnosis.final, diagnosis.final_comparison,
+            "final (+ " + ", ".join(diagnosis.verdict) + ")")
+    figures["ranking.png"] = ranking_figure(diagnosis)
+    figures["before_after.png"] = before_after_figure(diagnosis)
+    parameters = diagnosis.final.to_json()
+    writers = {name: (lambda path, f=figure: f.savefig(path, dpi=110))
+               for name, figure in figures.items()}
+    writers["diagnosis.json"] = lambda path: path.write_text(
+        json.dumps(document, indent=2, allow_nan=False) + "\n")
+    writers["parameters.json"] = lambda path: path.write_text(
+        json.dumps(parameters, indent=2, allow_nan=False) + "\n")
+    writers["report.txt"] = lambda path: path.write_text(report + "\n")
+    return writers
+
+
+def _ranking_lines(rows) -> list[str]:
+    lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'RMSE [N]':>10}{'ΔBIC':>10}"
+             f"{'CV RMSE [N]':>13}  significant"]
+    for row in rows:
+        lines.append(f"  {row.effect:<20}{row.score_statistic:>10.3g}{row.score_p_value:>10.2g}"
+                     f"{row.rmse_N:>10.4g}{row.delta_bic:>10.1f}{row.cv_rmse_N:>13.4g}  "
+                     + ("yes" if row.significant else "no: " + "; ".join(row.reasons)))
+    return lines
+
+
+def diagnosis_report(diagnosis) -> str:
+    """The before/after table, the rankings, where the baseline fails and the verdict."""
+    lines = []
+    base = diagnosis.baseline_comparison
+    source = "given" if diagnosis.noise_given else "estimated from the data, model-free"
+    lines.append(f"noise: {diagnosis.noise:.4g} N ({source})")
+    lines.append("")
+    lines.append("baseline (paper scaling, no effect): " + base.verdict.words)
+    worst = base.worst_groups(3)
+    lines.append("  worst groups: " + "; ".join(f"{g.quantity} {g.label}: RMSE {g.rmse_N:.3g} "
+                                               f"N, bias {g.bias_N:+.3g} N" for g in worst))
+    for k, step in enumerate(diagnosis.steps):
+        lines.append("")
+        lines.append(f"step {k + 1}: candidates against the current model, best first -> "
+                     f"add {step.added}")
+        lines += _ranking_lines(step.candidates)
+    if diagnosis.final_candidates:
+        lines.append("")
+        lines.append(f"final ranking ({diagnosis.stop_reason}):")
+        lines += _ranking_lines(diagnosis.final_candidates)
+    lines.append("")
+    lines.append(f"{'model':<34}{'RMSE [N]':>10}{'max |err| [N]':>15}{'bias [N]':>10}"
+                 f"{'CV RMSE [N]':>13}  residuals")
+    models = [("baseline", diagnosis.baseline_comparison, diagnosis.baseline_cv_rmse_N)]
+    added = []
+    for step in diagnosis.steps:
+        added.append(step.added)
+        models.append(("+ " + " + ".join(added), step.comparison, step.candidates[0].cv_rmse_N))
+    for label, comparison, cv in models:
+        lines.append(f"{label:<34}{comparison.rmse_N:>10.4g}{comparison.max_error_N:>15.4g}"
+                     f"{comparison.bias_N:>10.3g}{cv:>13.4g}  "
+                     + ("systematic" if comparison.verdict.systematic else "noise"))
+    lines.append(f"{'noise':<34}{diagnosis.noise:>10.4g}")
+    lines.append("")
+    lines.append(f"{'curve':<18}{'p [bar]':>8}{'r [mm]':>8}{'L [m]':>7}{'baseline':>10}"
+                 f"{'final':>9}  RMSE [N]")
+    for first, last in zip(base.curves, diagnosis.final_comparison.curves):
+        lines.append(f"{first['curve']:<18}{first['pressure_bar']:>8.3g}"
+                     f"{first['radius_m'] * 1e3:>8.3g}{first['length_m']:>7.3g}"
+                     f"{first['rmse_N']:>10.4g}{last['rmse_N']:>9.4g}")
+    lines.append("")
+    lines.append("verdict: " + (", ".join(diagnosis.verdict) or "nothing is missing"))
+    for sentence in diagnosis.statements:
+        lines.append("  - " + sentence)
+    return "\n".join(lines)
