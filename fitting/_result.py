@@ -113,7 +113,8 @@ class FitResult:
         # errors of identified coordinates as they are and gives coordinates the data do not
         # see an error ~1e5 x their scale, which the thresholds flag.
         factor = 1.0 if problem.noise_given else residual_variance
-        ridge = np.linalg.inv(scaled + 1e-10 * np.eye(n_free)) / np.outer(scale, scale)
+        with np.errstate(over="ignore"):  # a column the data do not see: inf, flagged below
+            ridge = np.linalg.inv(scaled + 1e-10 * np.eye(n_free)) / np.outer(scale, scale)
         se_free = np.sqrt(np.maximum(np.diag(ridge) * factor, 0.0))
         thresholds = np.array([_threshold(problem, n) for n in problem.free_names])
         se_free = np.where(se_free > thresholds, np.inf, se_free)
