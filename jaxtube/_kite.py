@@ -43,6 +43,8 @@ from ._structure import (
 )
 
 LEADING_EDGE = "le"
+# Named nodes besides "tube:index": le:centre, le:left_tip, le:right_tip, strut_k:root.
+KITE_NODE_NAMES = ("centre", "left_tip", "right_tip", "root")
 
 
 def double_taper(centre_radius: float, tip_radius: float) -> tuple[tuple[float, float], ...]:
