@@ -197,3 +197,26 @@ def test_kite_figure_draws_supports_loads_and_regimes(tmp_path):
         assert label in labels
     assert "line load / self-weight (up to 2.45 N/m)" in labels  # 0.25 kg/m x 9.81 m/s^2
     fig.savefig(tmp_path / "kite.png")
+
+
+def test_strut_is_a_rigid_attachment_with_half_tributary():
+    """At a strut's root node the leading edge keeps its bending joint (tributary: one
+    leading-edge segment) and the strut gets an attachment joint with its own law and half
+    of its first segment (PHYSICS.md section 1); every node of both tubes is a joint."""
+    from jaxtube._mechanics import initial_state, reference_geometry, spring_joints
+
+    kite = jt.TubeKite(segments=8, radius=0.05, pressure=2e4, bending_law=jt.LinearLaw(10.0),
+                       span=2.0, arc_height=0.6, struts=(jt.Strut(0.25, 0.6, 0.03, 3),))
+    structure, params = kite.build()
+    geometry = reference_geometry(structure, params)
+    joints = spring_joints(structure, geometry, initial_state(structure, params))
+    root = structure.node_id(kite.node("strut_1:root"))
+    assert root == structure.node_id("le:2")
+    at_root = {structure.tube_names[t]: float(geometry.joint_tributary[j])
+               for j, (n, t) in enumerate(zip(joints.node, joints.law_tube)) if n == root}
+    le = np.asarray(params.node_position)[list(structure.tube_node_ids[0])]
+    le_segment = float(np.linalg.norm(le[2] - le[1]))
+    assert at_root == pytest.approx({"le": le_segment, "strut_1": 0.1})
+    # 9 leading-edge joints (both clamps included), 3 strut joints (root, two interior).
+    assert sorted(structure.tube_names[t] for t in joints.law_tube).count("le") == 9
+    assert sorted(structure.tube_names[t] for t in joints.law_tube).count("strut_1") == 3
