@@ -12,6 +12,13 @@ This is a script, not a test. Run from the repository root::
     python experiments/bench_kite.py            # 5 repeats
     python experiments/bench_kite.py --quick    # 2 repeats
 
+On a shared 2-core machine, multi-threaded BLAS and Eigen oversubscribe the cores and the
+dense KKT solve slows down many times; single-threaded runs are measured with::
+
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 \
+    XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \
+    python experiments/bench_kite.py
+
 Writes ``experiments/results/bench_kite.txt`` (``--out``). Timings are medians of warm
 (compiled) calls; compile times come from ``jax.jit(f).lower(...).compile()``.
 """
@@ -19,6 +26,7 @@ Writes ``experiments/results/bench_kite.txt`` (``--out``). Timings are medians o
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -64,6 +72,9 @@ def curve_case(struts: int):
 
 def run(report: Report, repeats: int) -> None:
     report(f"jaxtube kite benchmark; {load_text()}")
+    threads = {key: os.environ.get(key, "unset") for key in
+               ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "XLA_FLAGS")}
+    report("threads: " + ", ".join(f"{key}={value!r}" for key, value in threads.items()))
     results = {}
     for label, struts in (("leading edge alone (baseline)", 0), ("kite, LE + 6 struts", STRUTS)):
         structure, params, path = curve_case(struts)

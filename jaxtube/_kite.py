@@ -74,8 +74,10 @@ class Strut(eqx.Module):
         radius: a number [m] or a taper ``[(fraction of the strut from its root, radius), ...]``.
         segments: number of rigid segments.
         pressure: envelope overpressure [Pa]; ``None`` shares the leading edge's.
-        bending_law, torsion_law: ``None`` uses the leading edge's law objects (evaluated at
-            the strut's own pressure and radius).
+        bending_law: ``None`` uses the leading edge's law object (evaluated at the strut's
+            own pressure and radius).
+        torsion_law: ``None`` uses the leading edge's torsion law when the strut has no
+            bending law of its own, else the strut's bending law (as for ``Tube``).
         mass_per_length [kg/m], line_load ``[3]`` [N/m]: as for :class:`~jaxtube.Tube`.
         direction: unit chordwise direction ``[3]`` (default ``+x``).
     """
