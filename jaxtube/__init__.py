@@ -18,6 +18,10 @@ import jax as _jax
 if _os.environ.get("JAXTUBE_NO_X64", "0") in ("", "0"):
     _jax.config.update("jax_enable_x64", True)
 
+from ._kite import Strut as Strut
+from ._kite import TubeKite as TubeKite
+from ._kite import arc_through_tips as arc_through_tips
+from ._kite import double_taper as double_taper
 from ._laws import AbstractMomentLaw as AbstractMomentLaw
 from ._laws import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from ._laws import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011

@@ -400,10 +400,15 @@ def _figures(spec: LoadedSpec, solution: Solution, table, joint_node) -> dict:
     control = None
     if meta.control == "displacement":
         control = (meta.control_node, meta.control_direction, table["control_force_N"])
+    # Line loads scale with the load factor, self-weight does not (jaxtube.scale_loads).
+    distributed = (factors[:, None, None] * np.asarray(params.line_load)[None]
+                   + (np.asarray(params.mass_per_length)[:, None]
+                      * np.asarray(params.gravity)[None])[None])
     shape = deformed_shape_figure(
         spec.structure, np.asarray(params.node_position), np.asarray(solution.node_position),
         table["converged"], joint_node=joint_node, joint_regime=np.asarray(
-            solution.joint_regime), point_force=point_force, control=control, title=label)
+            solution.joint_regime), point_force=point_force, control=control,
+        distributed=distributed, title=label)
     return {"force_deflection.png": deflection, "deformed_shape.png": shape}
 
 

@@ -78,8 +78,8 @@ def _node_regimes(joint_node, joint_regime, node_count: int) -> np.ndarray:
 
 def deformed_shape_figure(
     structure: Structure, reference_position, node_position, converged, *,
-    joint_node=(), joint_regime=None, point_force=None, control=None, intermediate: int = 3,
-    title: str = "",
+    joint_node=(), joint_regime=None, point_force=None, control=None, distributed=None,
+    intermediate: int = 3, title: str = "",
 ) -> Figure:
     """Undeformed (grey) and deformed shape in 3-D, with supports and loads.
 
@@ -96,6 +96,9 @@ def deformed_shape_figure(
             drawn step).
         control: optional ``(node, direction [3], force [K])``: the displacement actuator,
             drawn as a magenta arrow of ``force * direction``.
+        distributed: ``[K, T, 3]`` distributed load per tube [N/m] (line load plus
+            self-weight), drawn as small teal arrows at the segment midpoints of the drawn
+            step, scaled on their own.
     """
     reference = np.asarray(reference_position, dtype=float)
     positions = np.asarray(node_position, dtype=float)
@@ -167,6 +170,23 @@ def deformed_shape_figure(
         if np.isfinite(value) and value != 0.0:
             arrows.append((current[node], value * np.asarray(direction, dtype=float),
                            "tab:purple", "actuator force"))
+    if distributed is not None and shown is not None:
+        per_tube = np.asarray(distributed, dtype=float)[shown]
+        strongest = float(np.max(np.linalg.norm(per_tube, axis=1), initial=0.0))
+        for t, ids in enumerate(structure.tube_node_ids):
+            q = per_tube[t]
+            if strongest == 0.0 or not np.any(q):
+                continue
+            xyz = current[list(ids)]
+            heads = 0.5 * (xyz[1:] + xyz[:-1])
+            drawn = 0.08 * size * q / strongest
+            tails = heads - drawn
+            ax.quiver(tails[:, 0], tails[:, 1], tails[:, 2], *np.broadcast_to(
+                drawn, tails.shape).T, color="tab:cyan", arrow_length_ratio=0.3,
+                linewidth=0.8)
+        if strongest > 0.0:
+            handles.append(Line2D([], [], color="tab:cyan", marker=">", label=(
+                f"line load / self-weight (up to {strongest:.3g} N/m)")))
     if arrows:
         largest = max(np.linalg.norm(vector) for _, vector, _, _ in arrows)
         labels = set()

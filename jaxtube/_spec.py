@@ -20,11 +20,20 @@ everything is SI. A node is named ``"tube:index"``: the tube's name and a node i
 Top level (anything else is an error, with a suggestion of the closest allowed key):
 
 - ``format_version`` (optional integer, default 1): the spec format version; this jaxtube
-  reads version 1. Later versions add tables (a kite adds ``[[canopy]]``, ``[[line]]``,
-  ``[[point_mass]]``); a version-1 spec stays valid.
+  reads version 1. Tables are only ever added, so a version-1 spec stays valid.
 - ``name``, ``description`` (optional strings): copied into the outputs.
 - ``[[tube]]`` (one or more), ``[[support]]`` (one or more), ``[[connection]]``,
   ``[[load]]`` (optional, several), ``[gravity]`` (optional), ``[path]`` (required).
+- ``[kite]`` (optional): a tube kite (leading-edge arc, struts, tip supports), see
+  :mod:`jaxtube._kite_spec` for its keys. It adds the tubes ``le``, ``strut_1``, ...,
+  their rigid connections and both tip supports, so ``[[tube]]`` and ``[[support]]`` are
+  then optional (further tubes, supports and connections may still be added); node names
+  ``le:centre``, ``le:left_tip``, ``le:right_tip``, ``strut_k:root``, ``strut_k:end`` work
+  wherever a node is named.
+- Reserved for the full kite of a later version (an error now, with that reason):
+  ``[[canopy]]`` (the membrane between the tubes), ``[[line]]`` (bridle lines that carry
+  only tension, between named nodes), ``[[point_mass]]`` (masses at named nodes). They
+  will refer to nodes by the same names, so frames written now stay valid.
 
 ``[[tube]]``: one inflated tube, cut into equal rigid segments.
 
@@ -155,6 +164,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from ._kite import KITE_NODE_NAMES
 from ._laws import (
     AbstractMomentLaw,
     EmpiricalBendingLaw2011,
@@ -553,6 +563,7 @@ class _Context:
     gravity: np.ndarray | None = None
     path: dict | None = None
     tube_names_known: bool = True  # False when a tube name is missing or invalid
+    node_aliases: dict = dataclasses.field(default_factory=dict)  # "le:centre" -> "le:12"
 
 
 CENTRELINE_KINDS = ("straight", "arc", "polyline")
@@ -719,7 +730,11 @@ class _Node(NamedTuple):
 
 
 def _node_ref(p, value, where, ctx: _Context) -> _Node | None:
-    """A node name checked against the tubes, or None."""
+    """A node name checked against the tubes, or None. Kite node names (``le:centre``)
+    stand for the ``tube:index`` in ``ctx.node_aliases``; ``text`` keeps what was written."""
+    if isinstance(value, str) and value.strip() in ctx.node_aliases:
+        node = _node_ref(p, ctx.node_aliases[value.strip()], where, ctx)
+        return None if node is None else node._replace(text=value)
     if not isinstance(value, str):
         p.add(where, f"expected a node name 'tube:index' (e.g. 'beam:end'), found "
               f"{_found(value)}")
@@ -732,6 +747,8 @@ def _node_ref(p, value, where, ctx: _Context) -> _Node | None:
     except ValueError:
         index = None
     if not sep or index is None:
+        if not ctx.tube_names_known and index_text in KITE_NODE_NAMES:
+            return None  # a kite node of a [kite] whose problems are already reported
         p.add(where, f"expected a node name 'tube:index' (index an integer, negative from the "
               f"end, or 'start'/'end'), found {value!r}")
         return None
@@ -891,20 +908,35 @@ def _read_scalar(key, kind):
     return read
 
 
-# Order matters: node names need the tubes; the path checks supports and loads.
+def _read_kite(p, value, ctx):
+    from ._kite_spec import read_kite  # the kite module reads with this module's helpers
+
+    read_kite(p, value, ctx)
+
+
+# Order matters: node names need the tubes (and the kite's); the path checks supports and
+# loads.
 _TABLE_READERS: dict[str, Callable[[_Problems, Any, _Context], None]] = {
     "format_version": _read_scalar("format_version", int),
     "name": _read_scalar("name", str),
     "description": _read_scalar("description", str),
     "tube": _read_tubes,
+    "kite": _read_kite,
     "support": _read_supports,
     "connection": _read_connections,
     "load": _read_loads,
     "gravity": _read_gravity,
     "path": _read_path,
 }
-_REQUIRED_TABLES = {"tube": "one or more [[tube]] tables", "support": "one or more "
-                    "[[support]] tables", "path": "a [path] table"}
+_REQUIRED_TABLES = {"tube": "one or more [[tube]] tables (or a [kite])", "support": "one or "
+                    "more [[support]] tables (or a [kite])", "path": "a [path] table"}
+# Reserved for the full kite of a later format version; named here so that a spec using
+# them gets a clear message instead of "unknown key".
+RESERVED_TABLES = {
+    "canopy": "the kite canopy (a membrane between the tubes)",
+    "line": "bridle lines, which carry tension only",
+    "point_mass": "point masses",
+}
 
 
 # ------------------------------------------------------------------------------------------
@@ -948,7 +980,14 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
                    steps: int | None = None) -> LoadedSpec:
     """Like :func:`load_spec`, from an already parsed TOML document (a dict)."""
     p = _Problems(source)
-    _check_keys(p, document, "", tuple(_TABLE_READERS), _REQUIRED_TABLES)
+    required = {k: v for k, v in _REQUIRED_TABLES.items()
+                if "kite" not in document or k not in ("tube", "support")}
+    for key, what in RESERVED_TABLES.items():
+        if key in document:
+            p.add(key, f"reserved for {what} in a later spec format version; this jaxtube "
+                  f"(format version {FORMAT_VERSION}) cannot simulate it yet")
+    _check_keys(p, {k: v for k, v in document.items() if k not in RESERVED_TABLES}, "",
+                tuple(_TABLE_READERS), required)
     ctx = _Context()
     for key, read in _TABLE_READERS.items():
         if key in document:
