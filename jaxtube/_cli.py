@@ -122,7 +122,13 @@ def _add_predict(subparsers) -> None:
     add_predict(subparsers)
 
 
-_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict)
+def _add_sweep(subparsers) -> None:
+    from fitting._sweep_command import add_sweep
+
+    add_sweep(subparsers)
+
+
+_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
