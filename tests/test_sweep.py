@@ -64,53 +64,40 @@ def test_every_point_converges_and_reports(soft, stiff):
 
 
 @pytest.fixture(scope="module")
-def single_path():
-    """One compiled force-controlled path of a single cantilever (4 load steps of a unit
-    tip force times ``scale``), shared by every comparison."""
+def single_solve():
+    """One compiled static solve of a single, separately built cantilever under a dead tip
+    load (from the unloaded shape, no load steps), shared by every comparison."""
     structure, params = jt.cantilever(1.0, 0.075, 2e4, SETTINGS.segments,
                                       jt.TensionFieldLaw(SOFT_WALL))
     tip = structure.node_id("tube:end")
 
     @jax.jit
-    def solve(pressure, radius, length, scale):
+    def solve(pressure, radius, length, load):
         p = eqx.tree_at(lambda q: (q.node_position, q.node_radius, q.pressure),
-                        with_tip_force(structure, params, [0.0, 0.0, -1.0]),
+                        with_tip_force(structure, params, jnp.stack([0.0, 0.0, -load])),
                         (params.node_position * length,
-                            jnp.full_like(params.node_radius, radius),
-                            jnp.full_like(params.pressure, pressure)))
-        path = jt.ForceControl(scale * jnp.arange(1.0, 5.0) / 4.0)
-        sol = jt.solve_path(structure, p, path, SETTINGS.solver)
-        return (sol.converged, jnp.linalg.norm(sol.joint_moment[:, 0, :2], axis=-1),
-                params.node_position[tip, 2] * length - sol.node_position[:, tip, 2])
+                         jnp.full_like(params.node_radius, radius),
+                         jnp.full_like(params.pressure, pressure)))
+        sol = jt.equilibrium(structure, p, solver=SETTINGS.solver)
+        return (sol.converged, jnp.linalg.norm(sol.joint_moment[0, :2]),
+                params.node_position[tip, 2] * length - sol.node_position[tip, 2])
 
     return solve
 
 
 @pytest.mark.parametrize("point", [0, 3, 6])
-def test_sweep_agrees_with_single_solves(soft, single_path, point):
+def test_sweep_agrees_with_single_solves(soft, single_solve, point):
     """At the sweep's loads, a separately built and solved cantilever has the law's
     wrinkling / collapse moment at its root, and the sweep's tip deflection."""
     p, r, length = PRESSURE[point], RADIUS[point], LENGTH[point]
-    converged, moment, _ = single_path(p, r, length, soft.wrinkling_load[point])
-    assert bool(np.all(converged))
-    np.testing.assert_allclose(moment[-1], math.pi * p * r**3 / 2, rtol=2e-6)
-    converged, moment, _ = single_path(p, r, length, soft.collapse_load[point])
-    assert bool(np.all(converged))
-    np.testing.assert_allclose(moment[-1], 0.95 * math.pi * p * r**3, rtol=2e-6)
-    converged, _, deflection = single_path(p, r, length, TIP_LOAD)
-    assert bool(np.all(converged))
-    np.testing.assert_allclose(soft.tip_deflection[point], deflection[-1], rtol=1e-8)
-
-
-def test_tension_field_loads_scale_as_p_r3_over_length(stiff, soft):
-    """Comer-Levy: F_w = (pi/2) p r^3 / L and F_c = 0.95 pi p r^3 / L within 1 % where the
-    deflection at collapse is small; on the soft wall the lever arm's shortening shows."""
-    scale = PRESSURE * RADIUS**3 / LENGTH
-    np.testing.assert_allclose(stiff.wrinkling_load / scale, math.pi / 2, rtol=0.01)
-    np.testing.assert_allclose(stiff.collapse_load / scale, 0.95 * math.pi, rtol=0.01)
-    # Large-rotation equilibrium: the load always exceeds M / L (lever arm < L).
-    assert np.all(stiff.collapse_load > 0.95 * math.pi * scale)
-    assert np.all(soft.collapse_load / scale > stiff.collapse_load / scale)
+    for load, moment in ((soft.wrinkling_load, math.pi * p * r**3 / 2),
+                         (soft.collapse_load, 0.95 * math.pi * p * r**3)):
+        converged, root_moment, _ = single_solve(p, r, length, load[point])
+        assert bool(converged)
+        np.testing.assert_allclose(root_moment, moment, rtol=2e-6)
+    converged, _, deflection = single_solve(p, r, length, TIP_LOAD)
+    assert bool(converged)
+    np.testing.assert_allclose(soft.tip_deflection[point], deflection, rtol=1e-8)
 
 
 SHARDED = textwrap.dedent("""
@@ -141,8 +128,14 @@ def test_sharded_over_four_host_devices_equals_single_device(soft, tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     sharded = np.load(out)
+    # Statuses and Newton step counts exactly; values to round-off (the partitioned program
+    # fuses differently, measured differences about 1 ulp).
     for name in COMPARED:
-        np.testing.assert_array_equal(sharded[name], getattr(soft, name), err_msg=name)
+        if sharded[name].dtype.kind in "iub":
+            np.testing.assert_array_equal(sharded[name], getattr(soft, name), err_msg=name)
+        else:
+            np.testing.assert_allclose(sharded[name], getattr(soft, name), rtol=1e-13,
+                                       atol=0, err_msg=name)
 
 
 def test_cli_end_to_end_on_a_tiny_grid(tmp_path, capsys):
