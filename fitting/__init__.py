@@ -58,3 +58,7 @@ __all__ = [
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
 ]
+
+from ._sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundaries, sweep
+
+__all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]

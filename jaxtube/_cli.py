@@ -134,7 +134,13 @@ def _add_demo(subparsers) -> None:
     add_demo(subparsers)
 
 
-_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo)
+def _add_sweep(subparsers) -> None:
+    from fitting._sweep_command import add_sweep
+
+    add_sweep(subparsers)
+
+
+_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo, _add_sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:

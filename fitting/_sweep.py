@@ -1,0 +1,402 @@
+"""Design sweeps: a bending law evaluated on the standard bench cantilever over many specimens.
+
+For every specimen ``(p, r, L)`` (envelope overpressure [Pa], radius [m], length [m]) and a
+dead tip load ``F_tip`` [N], :func:`sweep` reports four quantities of the standard bench
+cantilever (:class:`fitting.CantileverRig`: a straight tube along +x, clamped at its root,
+dead vertical tip load along -z, ``segments`` rigid segments):
+
+- **initial bending stiffness** ``EI0 = dM/dkappa`` at zero curvature [N m^2], the law's own
+  initial slope (``AbstractMomentLaw.initial_stiffness``; no solve).
+- **wrinkling load** ``F_w`` [N]: the dead tip load at which the clamp (root) joint, the most
+  loaded joint of a tip-loaded cantilever, carries the law's *wrinkling moment* ``M_w``. The
+  wrinkling moment is the moment at the curvature where the law's regime leaves 0
+  (unwrinkled): the onset pivot of a :class:`jaxtube.SplineLaw`, Comer & Levy's
+  ``pi p r^3 / 2`` for the :class:`jaxtube.TensionFieldLaw`, ``0.5 M_max`` by this package's
+  convention for :class:`jaxtube.EmpiricalBendingLaw2011`. That curvature is found by
+  bisection on ``law.regime`` (so any law works), in ``log kappa`` over ``[1e-9, 1e6]`` 1/m.
+- **collapse load** ``F_c`` [N]: likewise at the *collapse moment* ``M_c``, where the regime
+  becomes 2 (collapsed): the collapse pivot of a spline law; for the tension-field law,
+  whose moment only tends to Comer & Levy's ``pi p r^3``, the package's collapsed-regime
+  threshold ``0.95 pi p r^3``; ``0.95 M_max`` for the 2011 law.
+- **tip deflection** ``v`` [m] at the given load ``F_tip``: the downward tip displacement of
+  the force-controlled equilibrium, reached in ``tip_steps`` equal load steps from the
+  unloaded shape (each step warm-started from the previous one).
+
+**Geometric nonlinearity.** Every load is found with the full large-rotation equilibrium of
+the rigid-segment chain (``jaxtube.equilibrium``), not with the small-deflection estimate
+``M / L``: the root moment of a dead vertical tip load is ``F l(F)``, with the lever arm
+``l(F) = L - u(F)`` shortened by the tip's horizontal displacement. The load is found by the
+Newton iteration ``F_(k+1) = F_k + (M_target - M_root(F_k)) / M_root'(F_k)``, with the
+slope ``dM_root/dF`` of each equilibrium from the implicit function theorem (a ``jax.jvp``
+through the solve), starting from ``M_w / L`` on the unloaded shape (wrinkling) and
+continuing from the wrinkling equilibrium (collapse); each solve is warm-started from the
+previous one (the first collapse step uses ``F M_c / M_root``, a lower bound, since the
+wrinkling equilibrium sits at the law's kink). ``M_root(F)`` is increasing and concave on
+the stable branch, so the iterates approach from below, quadratically.
+The reported load is the one of the last solve, and ``moment_mismatch`` is
+``|M_root / M_target - 1|`` there; above ``moment_tolerance`` the point is reported as not
+converged.
+
+**Failures are per point and never hidden.** Each quantity has a status code
+(:data:`STATUS_MESSAGES`); a quantity that is not available is NaN in the arrays and blank
+in the CSV, and its reason is given in words (:meth:`SweepResult.failure_reasons`). A law
+without a wrinkled (or collapsed) regime in the bracket gives ``STATUS_NO_REGIME``, which is
+"not applicable", not a failure.
+
+**Batching.** All points are one ``jax.vmap`` of one jitted function, evaluated in chunks of
+``chunk_size`` points (bounded memory; a ``tqdm`` progress bar over the chunks). With more
+than one device (``jax.devices()``: several GPUs, forced host devices, or the hosts of
+``jax.distributed``), each chunk is sharded along the point axis over a one-dimensional
+``jax.sharding.Mesh`` with ``NamedSharding``; the chunk size is rounded up to a multiple of
+the device count and the grid padded by repeating its last point (padding is dropped).
+Every point's computation is independent of the others, so a sharded sweep equals the
+single-device sweep (a test checks this on 4 forced host devices).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+import jaxtube as jt
+
+from ._rig import DEFAULT_SEGMENTS, DOWN, CantileverRig, TubeModel
+
+STATUS_OK = 0
+STATUS_NO_REGIME = 1
+STATUS_SOLVER_FAILED = 2
+STATUS_MOMENT_MISSED = 3
+STATUS_MESSAGES = {
+    STATUS_OK: "ok",
+    STATUS_NO_REGIME: "not applicable: the law has no such regime below 1e6 1/m",
+    STATUS_SOLVER_FAILED: "equilibrium solve failed",
+    STATUS_MOMENT_MISSED: "load iteration did not reach the target root moment",
+}
+
+#: Bracket of the bisection for the regime boundaries [1/m], and its halvings.
+CURVATURE_BRACKET = (1e-9, 1e6)
+_BISECTIONS = 64
+
+#: Solver of the sweep: the package's tolerances, fewer Newton steps (a point that needs
+#: more has failed; under ``vmap`` a failing point holds up its whole chunk).
+SWEEP_SOLVER = jt.NewtonKKT(max_steps=40)
+
+
+class SweepSettings(eqx.Module):
+    """Static settings of a sweep (they fix the compiled program).
+
+    Attributes:
+        segments: rigid segments of the cantilever (default 12, within about 0.1 % of the
+            elastica; tests/test_beam_references.py).
+        wrinkling_iterations, collapse_iterations: solves of each load iteration.
+        tip_steps: load steps to the given tip load.
+        moment_tolerance: largest accepted ``|M_root / M_target - 1|``.
+        chunk_size: points per compiled call (rounded up to a multiple of the devices).
+    """
+
+    segments: int = DEFAULT_SEGMENTS
+    wrinkling_iterations: int = 3
+    collapse_iterations: int = 6
+    tip_steps: int = 4
+    moment_tolerance: float = 1e-6
+    chunk_size: int = 512
+    solver: jt.NewtonKKT = SWEEP_SOLVER
+
+
+class SweepResult(eqx.Module):
+    """The outcome of :func:`sweep`. Every array has the broadcast shape ``S`` of the inputs.
+
+    Attributes:
+        pressure [Pa], radius [m], length [m], tip_load [N]: the specimens.
+        initial_stiffness: ``EI0`` [N m^2].
+        wrinkling_moment, collapse_moment: the law's regime-boundary moments [N m] (NaN if
+            the law has no such regime).
+        wrinkling_load, collapse_load: dead tip loads [N] (NaN where not available).
+        tip_deflection: downward tip displacement at ``tip_load`` [m] (NaN where failed).
+        wrinkling_status, collapse_status, deflection_status: codes of
+            :data:`STATUS_MESSAGES` (int).
+        wrinkling_solver_result, collapse_solver_result, deflection_solver_result: the
+            worst ``jaxtube.RESULT_MESSAGES`` code of the solves of each quantity.
+        wrinkling_mismatch, collapse_mismatch: ``|M_root / M_target - 1|`` at the reported
+            load.
+        iterations: Newton steps of all solves of the point.
+        settings: the :class:`SweepSettings`; devices: devices the grid was sharded over;
+        seconds: wall time of the evaluation (with compilation).
+    """
+
+    pressure: np.ndarray
+    radius: np.ndarray
+    length: np.ndarray
+    tip_load: np.ndarray
+    initial_stiffness: np.ndarray
+    wrinkling_moment: np.ndarray
+    collapse_moment: np.ndarray
+    wrinkling_load: np.ndarray
+    collapse_load: np.ndarray
+    tip_deflection: np.ndarray
+    wrinkling_status: np.ndarray
+    collapse_status: np.ndarray
+    deflection_status: np.ndarray
+    wrinkling_solver_result: np.ndarray
+    collapse_solver_result: np.ndarray
+    deflection_solver_result: np.ndarray
+    wrinkling_mismatch: np.ndarray
+    collapse_mismatch: np.ndarray
+    iterations: np.ndarray
+    settings: SweepSettings = eqx.field(static=True)
+    devices: int = eqx.field(static=True)
+    seconds: float = eqx.field(static=True)
+
+    @property
+    def failed(self) -> np.ndarray:
+        """bool ``S``: some quantity of the point failed (not-applicable does not count)."""
+        bad = (STATUS_SOLVER_FAILED, STATUS_MOMENT_MISSED)
+        return (np.isin(self.wrinkling_status, bad) | np.isin(self.collapse_status, bad)
+                | np.isin(self.deflection_status, bad))
+
+    @property
+    def failed_count(self) -> int:
+        return int(self.failed.sum())
+
+    def failure_reasons(self) -> np.ndarray:
+        """str ``S``: "ok", or every problem of the point in words (semicolon-separated)."""
+        flat = []
+        columns = [
+            ("wrinkling load", self.wrinkling_status, self.wrinkling_solver_result,
+             self.wrinkling_mismatch),
+            ("collapse load", self.collapse_status, self.collapse_solver_result,
+             self.collapse_mismatch),
+            ("tip deflection", self.deflection_status, self.deflection_solver_result, None),
+        ]
+        for i in range(self.pressure.size):
+            parts = []
+            for name, status, solver_result, mismatch in columns:
+                code = int(status.flat[i])
+                if code == STATUS_OK:
+                    continue
+                text = f"{name}: {STATUS_MESSAGES[code]}"
+                if code == STATUS_SOLVER_FAILED:
+                    text += f" ({jt.RESULT_MESSAGES[int(solver_result.flat[i])]})"
+                if code == STATUS_MOMENT_MISSED:
+                    text += (f" (relative mismatch {float(mismatch.flat[i]):.2g} > "
+                             f"{self.settings.moment_tolerance:g})")
+                parts.append(text)
+            flat.append("; ".join(parts) if parts else "ok")
+        return np.array(flat, dtype=object).reshape(self.pressure.shape)
+
+
+def regime_boundaries(law: jt.AbstractMomentLaw, pressure, radius):
+    """Curvatures [1/m] where ``law.regime`` first reaches 1 and 2, by bisection in
+    ``log kappa`` over :data:`CURVATURE_BRACKET` (regimes are non-decreasing in
+    ``|kappa|``); NaN where the regime is not reached in the bracket. Scalars in, scalars
+    out (vmap for batches)."""
+    lo, hi = (math.log(k) for k in CURVATURE_BRACKET)
+
+    def boundary(level):
+        def halve(_, bracket):
+            a, b = bracket
+            mid = 0.5 * (a + b)
+            above = law.regime(jnp.exp(mid), pressure, radius) >= level
+            return jnp.where(above, a, mid), jnp.where(above, mid, b)
+
+        start = (jnp.asarray(lo), jnp.asarray(hi))
+        _, upper = jax.lax.fori_loop(0, _BISECTIONS, halve, start)
+        reached = law.regime(jnp.exp(jnp.asarray(hi)), pressure, radius) >= level
+        return jnp.where(reached, jnp.exp(upper), jnp.nan)
+
+    return boundary(1), boundary(2)
+
+
+@functools.lru_cache(maxsize=8)
+def _solution_template(rig: CantileverRig):
+    """Shapes of one cantilever Solution (an abstract evaluation; nothing is compiled)."""
+    structure, params = rig.template()
+    return jax.eval_shape(lambda p: jt.equilibrium(structure, p, solver=rig.solver), params)
+
+
+def _point(model: TubeModel, settings: SweepSettings, pressure, radius, length, tip_load):
+    """All quantities of one specimen (scalars in; traced under ``vmap``)."""
+    rig = CantileverRig(segments=settings.segments, solver=settings.solver)
+    structure, _ = rig.template()
+    tip = structure.node_id("tube:end")
+    params = rig.specimen_parameters(model, pressure, radius, length)
+    params = eqx.tree_at(lambda p: p.node_force, params,
+                         params.node_force.at[tip].set(jnp.asarray(DOWN)))  # 1 N down
+    law = model.bending_law
+    stiffness = law.initial_stiffness(pressure, radius)
+    kappa_w, kappa_c = regime_boundaries(law, pressure, radius)
+    moment_w = law.moment(kappa_w, pressure, radius)
+    moment_c = law.moment(kappa_c, pressure, radius)
+
+    # The unloaded shape as a Solution to start from (equilibrium reads state, multipliers).
+    start = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), _solution_template(rig))
+    start = eqx.tree_at(lambda s: s.state, start, jt.initial_state(structure, params))
+
+    # One scan over every solve: phase 0 the tip-load steps, 1 wrinkling, 2 collapse.
+    n_t, n_w, n_c = settings.tip_steps, settings.wrinkling_iterations, settings.collapse_iterations
+    phase = np.repeat([0, 1, 2], [n_t, n_w, n_c])
+    first = np.concatenate([[True] + [False] * (n_t - 1), [True] + [False] * (n_w - 1),
+                            [True] + [False] * (n_c - 1)])
+    fraction = np.concatenate([np.arange(1, n_t + 1) / n_t, np.zeros(n_w + n_c)])
+    w_defined = jnp.isfinite(moment_w)
+    c_defined = jnp.isfinite(moment_c) & w_defined
+
+    def solve(load, initial):
+        sol = jt.equilibrium(structure, jt.scale_loads(params, load), initial=initial,
+                             solver=settings.solver)
+        return sol, jnp.linalg.norm(sol.joint_moment[0, :2])
+
+    def step(carry, xs):
+        previous, load, moment, slope = carry
+        phase_k, first_k, fraction_k = xs
+        target = jnp.where(phase_k == 2, moment_c, moment_w)
+        # M_root(F) = F l(F) with a lever arm l that shortens as F grows, so the ratio
+        # update F M_target / M_root(F) never passes the answer (it is a lower bound).
+        # Newton with the slope dM_root/dF of the previous solve (implicit function theorem)
+        # converges quadratically and, M_root being concave on the stable branch, also stays
+        # below; it is used where it is finite and above the ratio update. The first
+        # collapse step takes the ratio update: the wrinkling solve sits exactly at the
+        # law's kink, where the slope is one-sided.
+        ratio = load * target / moment
+        newton = load + (target - moment) / slope
+        newton_ok = jnp.isfinite(newton) & (slope > 0) & (newton > ratio) & ~first_k
+        iterated = jnp.where(newton_ok, newton, ratio)
+        load_new = jnp.select(
+            [phase_k == 0, (phase_k == 1) & first_k],
+            [tip_load * fraction_k, moment_w / length], iterated)
+        defined = jnp.where(phase_k == 0, True, jnp.where(phase_k == 1, w_defined, c_defined))
+        load_new = jnp.where(defined, load_new, 0.0)
+        restart = first_k & (phase_k < 2)
+        initial = jax.tree.map(lambda a, b: jnp.where(restart, a, b), start, previous)
+        (sol, root_moment), (_, slope_new) = jax.jvp(
+            lambda f: solve(f, initial), (load_new,), (jnp.ones_like(load_new),))
+        deflection = jnp.dot(sol.node_position[tip] - params.node_position[tip], DOWN)
+        out = (load_new, root_moment, deflection, sol.converged, sol.result, sol.iterations)
+        return (sol, load_new, root_moment, slope_new), out
+
+    carry0 = (start, jnp.zeros(()), jnp.ones(()), jnp.ones(()))
+    _, (loads, moments, deflections, converged, results, iterations) = jax.lax.scan(
+        step, carry0, (phase, first, fraction))
+
+    def summary(k_phase, target, defined):
+        chosen = phase == k_phase
+        ok = jnp.all(jnp.where(chosen, converged, True))
+        worst = jnp.max(jnp.where(chosen, results, 0))
+        last = np.flatnonzero(chosen)[-1]
+        mismatch = jnp.abs(moments[last] / target - 1.0)
+        status = jnp.where(~defined, STATUS_NO_REGIME,
+                           jnp.where(~ok, STATUS_SOLVER_FAILED,
+                                     jnp.where(mismatch <= settings.moment_tolerance,
+                                               STATUS_OK, STATUS_MOMENT_MISSED)))
+        value = jnp.where(status == STATUS_OK, loads[last], jnp.nan)
+        return value, status, worst, jnp.where(defined, mismatch, jnp.nan)
+
+    f_w, s_w, r_w, m_w = summary(1, moment_w, w_defined)
+    f_c, s_c, r_c, m_c = summary(2, moment_c, c_defined)
+    t_ok = jnp.all(jnp.where(phase == 0, converged, True))
+    s_t = jnp.where(t_ok, STATUS_OK, STATUS_SOLVER_FAILED)
+    v = jnp.where(t_ok, deflections[n_t - 1], jnp.nan)
+    r_t = jnp.max(jnp.where(phase == 0, results, 0))
+    return dict(initial_stiffness=stiffness, wrinkling_moment=moment_w,
+                collapse_moment=moment_c, wrinkling_load=f_w, collapse_load=f_c,
+                tip_deflection=v, wrinkling_status=s_w, collapse_status=s_c,
+                deflection_status=s_t, wrinkling_solver_result=r_w,
+                collapse_solver_result=r_c, deflection_solver_result=r_t,
+                wrinkling_mismatch=m_w, collapse_mismatch=m_c,
+                iterations=jnp.sum(iterations))
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled_chunk(settings: SweepSettings, devices: tuple):
+    """One jitted ``vmap`` over a chunk of points, sharded over ``devices`` along the points."""
+    def chunk(model, pressure, radius, length, tip_load):
+        return jax.vmap(functools.partial(_point, model, settings))(pressure, radius, length,
+                                                                    tip_load)
+
+    if len(devices) == 1:
+        return jax.jit(chunk), None
+    mesh = Mesh(np.asarray(devices), ("points",))
+    points = NamedSharding(mesh, PartitionSpec("points"))
+    replicated = NamedSharding(mesh, PartitionSpec())
+    return jax.jit(chunk, in_shardings=(replicated, points, points, points, points),
+                   out_shardings=points), points
+
+
+def _to_devices(values: np.ndarray, sharding):
+    if sharding is None:
+        return jnp.asarray(values)
+    # Works across the processes of jax.distributed too: every process holds the whole grid
+    # and supplies the shards of its own devices.
+    return jax.make_array_from_callback(values.shape, sharding, lambda index: values[index])
+
+
+def _to_host(values) -> np.ndarray:
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return np.asarray(multihost_utils.process_allgather(values, tiled=True))
+    return np.asarray(values)
+
+
+def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_load,
+          settings: SweepSettings = SweepSettings(), devices=None,
+          progress: bool = False) -> SweepResult:
+    """Evaluate a bending law on the standard cantilever at every specimen.
+
+    Arguments (any mutually broadcastable shapes; ``np.meshgrid`` makes a grid):
+        law: a bending law (:class:`jaxtube.AbstractMomentLaw`, e.g. from
+            :func:`fitting.load_law`) or a :class:`fitting.TubeModel` with effects.
+        pressure: overpressure [Pa] (> 0); radius [m] (> 0); length [m] (> 0);
+        tip_load: the dead tip load of the tip deflection [N] (>= 0).
+        settings: :class:`SweepSettings`; devices: devices to shard over (default: all of
+            ``jax.devices()``); progress: a ``tqdm`` bar over the chunks.
+
+    Returns a :class:`SweepResult` of the broadcast shape (quantities defined in the module
+    docstring). Raises ``ValueError`` for non-positive or non-finite specimens.
+    """
+    model = law if isinstance(law, TubeModel) else TubeModel(bending_law=law)
+    arrays = np.broadcast_arrays(*(np.asarray(v, float) for v in
+                                   (pressure, radius, length, tip_load)))
+    shape = arrays[0].shape
+    for name, values, lowest in zip(("pressure", "radius", "length", "tip_load"), arrays,
+                                    (0, 0, 0, None)):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"sweep: {name} must be finite")
+        if lowest is not None and not np.all(values > lowest):
+            raise ValueError(f"sweep: {name} must be positive, found {values.min():g}")
+    if np.any(arrays[3] < 0):
+        raise ValueError("sweep: tip_load must be >= 0 (it acts downwards)")
+    devices = tuple(jax.devices() if devices is None else devices)
+    count = int(np.prod(shape))
+    if count == 0:
+        raise ValueError("sweep: no points")
+    size = -(-min(settings.chunk_size, count) // len(devices)) * len(devices)
+    padded = -(-count // size) * size
+    flat = [np.concatenate([a.reshape(-1), np.repeat(a.reshape(-1)[-1:], padded - count)])
+            for a in arrays]
+    compiled, sharding = _compiled_chunk(settings, devices)
+    started = time.perf_counter()
+    pieces = []
+    chunks = range(0, padded, size)
+    if progress:
+        from tqdm.auto import tqdm
+
+        chunks = tqdm(chunks, desc=f"sweep ({count} points, {len(devices)} device(s))",
+                      unit="chunk")
+    for start in chunks:
+        inputs = [_to_devices(a[start:start + size], sharding) for a in flat]
+        out = compiled(model, *inputs)
+        pieces.append({key: _to_host(value) for key, value in out.items()})
+    seconds = time.perf_counter() - started
+    fields = {key: np.concatenate([p[key] for p in pieces])[:count].reshape(shape)
+              for key in pieces[0]}
+    return SweepResult(pressure=arrays[0].copy(), radius=arrays[1].copy(),
+                       length=arrays[2].copy(), tip_load=arrays[3].copy(), **fields,
+                       settings=settings, devices=len(devices), seconds=seconds)
