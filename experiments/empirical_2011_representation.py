@@ -14,7 +14,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-
 from _synthetic import QUICK_POINTS, continuum_curve, fit, jt, measured, parser, save
 
 

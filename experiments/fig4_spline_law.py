@@ -15,7 +15,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-
 from _synthetic import jt, parser, save
 
 PRESSURE, RADIUS, WALL = 0.2e5, 0.075, 150e3

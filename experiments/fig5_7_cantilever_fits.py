@@ -15,8 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-
-from _synthetic import QUICK_POINTS, HERE, continuum_curve, fit, measured, parser, save
+from _synthetic import HERE, QUICK_POINTS, continuum_curve, fit, measured, parser, save
 
 PRESSURES_BAR, RADIUS, LENGTH = (0.2, 0.4), 0.075, 1.0
 

@@ -15,7 +15,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-
 from _synthetic import HERE, QUICK_POINTS, continuum_curve, fit, measured, parser, save
 
 

@@ -12,9 +12,10 @@ Specimens ``(p [bar], r [m], L [m])``: default (0.15, 0.075, 0.6), (0.30, 0.075,
 (0.15, 0.075, 1.2), (0.30, 0.075, 1.2), (0.22, 0.06, 0.9), (0.22, 0.09, 0.9); one-radius
 set: the same with the last two at r = 0.075 m and L = 0.9, 0.75 m. 14 points per curve at
 loads evenly spaced from ``load_max / 14`` to ``load_max``, with
-``load_max = 0.85 (M_c(p, r) - w g L^2 / 2 - m g L) / L``, ``M_c`` the law's collapse pivot
-moment, ``w`` the mass per length (0 unless self-weight), ``m`` a tip mass (0 unless
-tip_mass), g = 9.81 m/s^2. If the solver fails on a
+``load_max = 0.85 (M_c(p, r) + EI_r kappa_c - w g L^2 / 2 - m g L) / L``, ``M_c`` and
+``kappa_c`` the law's collapse pivot, ``EI_r`` a reinforcement (0 unless stated), ``w`` the
+mass per length (0 unless self-weight), ``m`` a tip mass (0 unless tip_mass),
+g = 9.81 m/s^2. If the solver fails on a
 dataset, its factor drops to 0.80 (reported).
 
 Datasets (file: effect, seed):
@@ -23,10 +24,12 @@ Datasets (file: effect, seed):
 - ``tests/data/effects/none_one_radius.csv``: none, one-radius specimens, seed 102.
 - ``tests/data/effects/shear.csv``: Fichter shear, ``S = p pi r^2 + k G t 2 pi r`` with
   ``G t = 5e3 N/m``, ``k = 0.5`` (per specimen), seed 103.
-- ``tests/data/effects/reinforcement.csv``: ``EI_r = 40 N m^2``, seed 104.
+- ``tests/data/effects/reinforcement.csv``: ``EI_r = 40 N m^2``, wide-pressure specimens,
+  loads past the membrane's collapse, force noise 0.25 % of the largest force, seed 104.
 - ``tests/data/effects/clamp_compliance.csv``: ``k_clamp = 2500 N m/rad``, seed 105.
 - ``tests/data/effects/self_weight.csv``: ``w = 0.8 kg/m``, seed 106.
-- ``jaxtube/data/demo_hidden_effect.csv``: ``EI_r = 30 N m^2``, default specimens, seed 107.
+- ``jaxtube/data/demo_hidden_effect.csv``: clamp compliance ``k_clamp = 1500 N m/rad``,
+  default specimens, seed 107.
 - ``tests/data/effects/tip_mass.csv``: a 0.5 kg point mass hanging at the tip (not a built-in
   effect: the user-effect example ``experiments/effects/tip_mass.py``); ``load_max`` is
   reduced by its root moment ``m g L``; default specimens, seed 108.
@@ -62,6 +65,9 @@ GRAVITY = 9.81
 POINTS = 14
 LOAD_FACTOR, FALLBACK_FACTOR = 0.85, 0.80
 NOISE_FRACTION = 0.01
+# Reinforcement is nearly absorbed by the pivots' power laws (tests/data/effects/README.md):
+# it is detectable only where the noise is small against the curves of the weakest specimens.
+NOISE_FRACTIONS = {"reinforcement": 0.0025}
 NOISE_DEFLECTION_MM = _calibration.NOISE_DEFLECTION_MM  # the shared writer adds it
 DEFAULT = ((0.15, 0.075, 0.6), (0.30, 0.075, 0.6), (0.15, 0.075, 1.2), (0.30, 0.075, 1.2),
            (0.22, 0.06, 0.9), (0.22, 0.09, 0.9))
@@ -89,8 +95,8 @@ DATASETS = {
                          lambda p, r: {"clamp_stiffness": 2500.0}, 105),
     "self_weight": ("tests/data/effects/self_weight.csv", DEFAULT,
                     lambda p, r: {"mass_per_length": 0.8}, 106),
-    "demo_hidden_effect": ("jaxtube/data/demo_hidden_effect.csv", WIDE_PRESSURE,
-                           lambda p, r: {"reinforcement_stiffness": 30.0}, 107),
+    "demo_hidden_effect": ("jaxtube/data/demo_hidden_effect.csv", DEFAULT,
+                           lambda p, r: {"clamp_stiffness": 1500.0}, 107),
     # Not a built-in effect: the user-effect example (experiments/effects/tip_mass.py).
     "tip_mass": ("tests/data/effects/tip_mass.csv", DEFAULT, lambda p, r: {"tip_mass": 0.5},
                  108),
@@ -103,13 +109,14 @@ _LAWS = {}
 
 
 def continuum_law(pressure, radius):
-    """The base law at (p [Pa], r [m]) as a continuum BendingLaw, and its collapse moment."""
+    """The base law at (p [Pa], r [m]) as a continuum BendingLaw, its collapse moment [N m]
+    and its collapse curvature [1/m]."""
     if (pressure, radius) not in _LAWS:
         compiled = jax.jit(lambda kappa: _LAW.moment(kappa, pressure, radius))
         curvatures, moments = (np.asarray(v) for v in _LAW.pivots(pressure, radius))
         law = continuum.law_from_moment(lambda kappa: float(compiled(kappa)),
                                         curvature_scale=float(curvatures[0]))
-        _LAWS[pressure, radius] = (law, float(moments[1]))
+        _LAWS[pressure, radius] = (law, float(moments[1]), float(curvatures[1]))
     return _LAWS[pressure, radius]
 
 
@@ -118,8 +125,12 @@ def make_curves(specimens, effect, factor):
     curves = []
     for p_bar, radius, length in specimens:
         pressure = p_bar * 1e5
-        law, collapse_moment = continuum_law(pressure, radius)
+        law, collapse_moment, collapse_curvature = continuum_law(pressure, radius)
         kwargs = effect(pressure, radius)
+        # A reinforcement carries EI_r kappa on top of the law: the loads go as far past the
+        # membrane's collapse as they go towards it without (the membrane wrinkles and
+        # collapses while the reinforcement keeps the curve rising).
+        collapse_moment += kwargs.get("reinforcement_stiffness", 0.0) * collapse_curvature
         model = continuum.CantileverModel(length, law, **kwargs)
         weight_moment = (kwargs.get("mass_per_length", 0.0) * GRAVITY * length**2 / 2
                          + kwargs.get("tip_mass", 0.0) * GRAVITY * length)
@@ -133,6 +144,7 @@ def make_curves(specimens, effect, factor):
 
 def make_dataset(name):
     path, specimens, effect, seed = DATASETS[name]
+    noise_fraction = NOISE_FRACTIONS.get(name, NOISE_FRACTION)
     factor = LOAD_FACTOR
     try:
         curves = make_curves(specimens, effect, factor)
@@ -142,7 +154,7 @@ def make_dataset(name):
         curves = make_curves(specimens, effect, factor)
     rng = np.random.default_rng(seed)
     largest = max(c[4][-1] for c in curves)
-    noise_force = NOISE_FRACTION * largest
+    noise_force = noise_fraction * largest
     target = ROOT / path
     target.parent.mkdir(parents=True, exist_ok=True)
     _calibration.write_noisy_curves(
@@ -154,7 +166,7 @@ def make_dataset(name):
           f"{NOISE_DEFLECTION_MM} mm", flush=True)
     if name in CHECKED:  # effect vs no effect at each specimen's largest load
         for curve, p_bar, radius, length, loads, deflections, _ in curves:
-            law, _ = continuum_law(p_bar * 1e5, radius)
+            law, _, _ = continuum_law(p_bar * 1e5, radius)
             plain = continuum.CantileverModel(length, law).tip_deflection(loads[-1])
             print(f"  {curve:16s} P {loads[-1]:7.3f} N: u {deflections[-1] * 1e3:8.2f} mm,"
                   f" no effect {plain * 1e3:8.2f} mm, rel diff "

@@ -25,11 +25,8 @@ from ._diagnose import (
     DiagnoseOptions,
     Diagnosis,
     DiagnosisStep,
-    ScoreTest,
-    cross_validated_rmse,
     default_candidates,
     diagnose,
-    score_test,
 )
 from ._effects import (
     BUILT_IN_EFFECTS,
@@ -45,6 +42,7 @@ from ._effects import (
 from ._result import FitResult, ParameterEstimate, load_law
 from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
+from ._score import ScoreTest, cross_validated_rmse, score_test
 
 __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",

@@ -51,7 +51,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.stats
 
 from ._calibrate import FitError, FitOptions, estimate_noise, fit_problem, make_problem
 from ._compare import Comparison, compare
@@ -60,8 +59,21 @@ from ._effects import BUILT_IN_EFFECTS, MODEL_EXTENSIONS, Effect
 from ._result import FitResult
 from ._rig import CantileverRig
 from ._scaling import PivotScaling
+from ._score import (
+    _share,
+    absorbed_free_effects,
+    canonical_correlation,
+    chi2,
+    cross_validated_rmse,
+    parameter_names,
+    point_count,
+    score_test,
+)
 
 ABSORBED_SHARE = 0.05
+#: Two significant candidates whose BIC drops differ by less than this explain the data
+#: about equally well ("very strong" evidence starts at 10: Kass & Raftery 1995).
+CLOSE_BIC = 10.0
 CONFOUNDED_CORRELATION = 0.95
 PLURALS = {"pressure": "pressures", "radius": "radii", "length": "lengths"}
 QUANTITY_UNITS = {"pressure": ("bar", 1e-5), "radius": ("mm", 1e3), "length": ("m", 1.0)}
@@ -72,105 +84,6 @@ QUANTITY_UNITS = {"pressure": ("bar", 1e-5), "radius": ("mm", 1e3), "length": ("
 # --------------------------------------------------------------------------------------------
 
 
-@dataclasses.dataclass(frozen=True)
-class ScoreTest:
-    """Score test of freeing ``names`` (held at their null values in the fit).
-
-    statistic: ``S`` (chi^2 units); dof: number of parameters; p_value; score: ``U``
-    (per parameter, noise units per parameter unit).
-    """
-
-    names: tuple[str, ...]
-    statistic: float
-    dof: int
-    p_value: float
-    score: tuple[float, ...]
-
-
-def _data_rows(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
-    """Residuals ``[n]`` and Jacobian ``[n, n_names]`` of the data rows (no prior rows)."""
-    n_data = result.problem.batch.force.size
-    return result.residual[:n_data], result.jacobian[:n_data]
-
-
-def _lower_bound(problem, name: str) -> float:
-    return float(problem.lower[problem.names.index(name)])
-
-
-def score_test(result: FitResult, names) -> ScoreTest:
-    """Score test for the coordinates ``names`` of ``result``'s problem, which the fit held
-    fixed (at their null values). Uses the Jacobian of the fit's last evaluation: no new
-    evaluation, no new compilation."""
-    problem = result.problem
-    names = tuple(names)
-    index = [problem.names.index(name) for name in names]
-    if any(i in problem.free_index for i in index):
-        raise ValueError(f"{names}: a score test needs the coordinates held fixed in the fit")
-    r, jac = _data_rows(result)
-    j_b = jac[:, np.asarray(problem.free_index)]
-    j_c = jac[:, np.asarray(index)]
-    score = -j_c.T @ r
-    projection = j_c.T @ j_b @ np.linalg.pinv(j_b.T @ j_b, rcond=1e-12, hermitian=True)
-    information = j_c.T @ j_c - projection @ (j_b.T @ j_c)
-    statistic = float(score @ np.linalg.pinv(information, rcond=1e-12, hermitian=True) @ score)
-    dof = len(names)
-    lower = np.array([_lower_bound(problem, name) for name in names])
-    at_bound = np.isclose(result.vector[np.asarray(index)], lower)
-    if dof == 1 and at_bound[0]:
-        if score[0] <= 0:
-            statistic = 0.0
-        p_value = 0.5 * float(scipy.stats.chi2.sf(statistic, 1)) if statistic > 0 else 1.0
-    else:
-        p_value = float(scipy.stats.chi2.sf(statistic, dof))
-    return ScoreTest(names, max(statistic, 0.0), dof, p_value, tuple(float(u) for u in score))
-
-
-# --------------------------------------------------------------------------------------------
-# Goodness of a model: chi^2, BIC, cross-validation
-# --------------------------------------------------------------------------------------------
-
-
-def chi2(result: FitResult) -> float:
-    """Weighted chi^2 of the data in noise units (the prior rows excluded)."""
-    r, _ = _data_rows(result)
-    return float(r @ r)
-
-
-def point_count(result: FitResult) -> int:
-    return int(np.sum(result.problem.batch.weight > 0))
-
-
-def cross_validated_rmse(result: FitResult) -> float:
-    """Leave-one-curve-out RMSE [N], linearised: per curve one Gauss-Newton step from the
-    optimum without that curve's rows, then that curve predicted (module docstring).
-    Coordinates at a bound stay there; directions the remaining data do not determine are
-    left unchanged (pseudo-inverse)."""
-    problem = result.problem
-    free = np.asarray(problem.free_index)
-    lower, upper = problem.free_bounds
-    x = result.free_values
-    movable = ~(np.isclose(x, lower) | np.isclose(x, upper))
-    r_all = result.residual
-    jac_all = result.jacobian[:, free][:, movable]
-    curves, width = problem.batch.force.shape
-    total = 0.0
-    for c in range(curves):
-        rows = np.zeros(r_all.size, bool)
-        rows[c * width:(c + 1) * width] = True
-        keep = ~rows
-        j_keep = jac_all[keep]
-        normal = j_keep.T @ j_keep
-        scale = np.sqrt(np.maximum(np.diag(normal), 1e-300))
-        step = -(np.linalg.pinv(normal / np.outer(scale, scale), rcond=1e-10, hermitian=True)
-                 @ (j_keep.T @ r_all[keep] / scale)) / scale
-        predicted = r_all[rows] + jac_all[rows] @ step
-        total += float(predicted @ predicted)
-    weight = problem.batch.weight.reshape(-1)
-    return float(problem.noise * math.sqrt(total / np.sum(weight)))
-
-
-# --------------------------------------------------------------------------------------------
-# Candidates and their ranking
 # --------------------------------------------------------------------------------------------
 
 
@@ -186,10 +99,6 @@ def default_candidates(scaling: PivotScaling, user_effects: Sequence[type[Effect
             raise ValueError(f"effect name {effect.name!r} is taken; rename the user effect")
         names.append(effect.name)
     return candidates + tuple(user_effects)
-
-
-def parameter_names(effect: type[Effect]) -> tuple[str, ...]:
-    return tuple(f"{effect.name}.{p.name}" for p in effect.parameters)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -253,41 +162,6 @@ class DiagnoseOptions:
 def _fit_options(options: DiagnoseOptions, noise, iterations) -> FitOptions:
     return FitOptions(noise_N=noise, max_iterations=iterations, chi2_tol=options.chi2_tol,
                       ftol=1e-9, progress=False)
-
-
-def _orthonormal(matrix: np.ndarray, rcond: float = 1e-9) -> np.ndarray:
-    if matrix.size == 0:
-        return matrix
-    u, s, _ = np.linalg.svd(matrix, full_matrices=False)
-    keep = s > rcond * max(float(s[0]), 1e-300) if s.size else s > 0
-    return u[:, keep]
-
-
-def absorbed_free_effects(result: FitResult, candidates) -> dict[str, np.ndarray]:
-    """Per candidate (held at its null in ``result``): ``(I - P_b) J_c``, the part of its
-    effect on the curves that refitting the current parameters cannot reproduce."""
-    _, jac = _data_rows(result)
-    q_b = _orthonormal(jac[:, np.asarray(result.problem.free_index)])
-    out = {}
-    for effect in candidates:
-        index = [result.problem.names.index(n) for n in parameter_names(effect)]
-        j_c = jac[:, index]
-        out[effect.name] = (j_c - q_b @ (q_b.T @ j_c), j_c)
-    return out
-
-
-def _share(residual_part, whole) -> float:
-    norm = float(np.sum(whole**2))
-    return float(np.sum(residual_part**2) / norm) if norm > 0 else 0.0
-
-
-def canonical_correlation(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest canonical correlation (cosine of the smallest principal angle) of the column
-    spaces of ``a`` and ``b``."""
-    qa, qb = _orthonormal(a), _orthonormal(b)
-    if qa.shape[1] == 0 or qb.shape[1] == 0:
-        return 0.0
-    return float(np.linalg.svd(qa.T @ qb, compute_uv=False)[0])
 
 
 def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, bar=None):
@@ -602,7 +476,8 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         if bar is not None:
             bar.close()
     verdict = tuple(step.added for step in steps)
-    statements = _verdict_words(baseline, compare(baseline), steps, comparison_now, ranking)
+    statements = _verdict_words(baseline, compare(baseline), steps, comparison_now, ranking,
+                                candidates)
     statements += separation_statements(current, remaining, ranking) if ranking else []
     if undetermined:
         statements.append(
@@ -616,8 +491,10 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
                      noise_given=options.noise_N is not None, options=options)
 
 
-def _verdict_words(baseline, baseline_comparison, steps, final_comparison, ranking):
+def _verdict_words(baseline, baseline_comparison, steps, final_comparison, ranking,
+                   candidates):
     noise = baseline.noise
+    by_name = {c.name: c for c in candidates}
     words = []
     if not steps:
         if baseline_comparison.verdict.systematic:
@@ -639,6 +516,18 @@ def _verdict_words(baseline, baseline_comparison, steps, final_comparison, ranki
                 f"Missing: {step.added} ({values}): score test S = {row.score_statistic:.3g} "
                 f"(p = {row.score_p_value:.2g}), ΔBIC {row.delta_bic:.1f}, cross-validated "
                 f"error {step.current_cv_rmse_N:.3g} -> {row.cv_rmse_N:.3g} N.")
+            for rival in step.candidates[1:]:
+                if rival.significant and rival.delta_bic - row.delta_bic < CLOSE_BIC:
+                    pair = [by_name[step.added], by_name[rival.effect]]
+                    quantities = tuple(dict.fromkeys(q for e in pair for q in e.separated_by))
+                    _, fixed = _spread_words(baseline.problem.data, quantities)
+                    words.append(
+                        f"{step.added} and {rival.effect} can barely be told apart with this "
+                        f"data: either alone explains it (ΔBIC {row.delta_bic:.1f} and "
+                        f"{rival.delta_bic:.1f}, a difference under {CLOSE_BIC:g}; "
+                        f"cross-validated error {row.cv_rmse_N:.3g} and {rival.cv_rmse_N:.3g} "
+                        f"N). {step.added} is kept for its lower BIC; check that its value is "
+                        f"plausible. " + _separation_advice(pair, fixed))
         words.append(
             f"With {', '.join(s.added for s in steps)} the RMSE falls from {baseline.rmse:.3g} "
             f"N to {final.rmse:.3g} N (noise {noise:.3g} N). "
@@ -652,6 +541,5 @@ def _verdict_words(baseline, baseline_comparison, steps, final_comparison, ranki
     return words
 
 
-__all__ = ["CandidateRanking", "Diagnosis", "DiagnosisStep", "DiagnoseOptions", "ScoreTest",
-           "canonical_correlation", "cross_validated_rmse", "default_candidates", "diagnose",
-           "rank_candidates", "score_test"]
+__all__ = ["CandidateRanking", "Diagnosis", "DiagnosisStep", "DiagnoseOptions",
+           "default_candidates", "diagnose", "rank_candidates"]

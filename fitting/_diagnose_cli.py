@@ -44,8 +44,8 @@ from ._scaling import PivotScaling
 
 DEMO_DATA = "demo_hidden_effect.csv"
 #: What the bundled demo dataset hides (jaxtube/data/README.md); printed after the verdict.
-DEMO_TRUTH = ("reinforcement", "a pressure-independent bending stiffness EI_r = 30 N m^2 in "
-                               "parallel with the tube's law")
+DEMO_TRUTH = ("clamp_compliance", "the rig's clamp is a rotational spring of 1500 N m/rad, not "
+                                  "rigid")
 
 
 def add_diagnose(subparsers) -> None:

@@ -289,7 +289,8 @@ def heatmap(result, field: str, title: str, unit: str, factor: float):
         ax.set_ylabel("radius [mm]")
         ax.set_title(f"L = {result.length[0, 0, k]:g} m", fontsize=10)
         figure.colorbar(mesh, ax=ax, label=f"{field.replace('_', ' ')} [{unit}]")
-    note = "" if lengths.size == values.shape[2] else f" ({lengths.size} of {values.shape[2]} lengths)"
+    shown = values.shape[2]
+    note = "" if lengths.size == shown else f" ({lengths.size} of {shown} lengths)"
     figure.suptitle(f"{title}; dashed: p r^3 [N m]{note}; tip load "
                     f"{float(result.tip_load.flat[0]):g} N" if field == "tip_deflection" else
                     f"{title}; dashed: p r^3 [N m]{note}", fontsize=11)

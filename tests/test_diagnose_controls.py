@@ -95,13 +95,13 @@ def test_demo_finds_the_hidden_effect_and_writes_its_outputs(tmp_path, capsys):
     assert code == 0
     document = json.loads((out / "diagnosis.json").read_text())
     physical = [name for name in document["verdict"] if name in ft.BUILT_IN_EFFECTS]
-    assert physical == ["reinforcement"]  # what jaxtube/data/README.md says is hidden
+    assert physical == ["clamp_compliance"]  # what jaxtube/data/README.md says is hidden
     assert document["final"]["rmse_N"] < document["baseline"]["rmse_N"]
     assert document["final"]["rmse_N"] <= 1.3 * document["noise_N"]
-    for name in ("fit_0_baseline.png", "fit_1_reinforcement.png", "where_it_fails.png",
+    for name in ("fit_0_baseline.png", "fit_1_clamp_compliance.png", "where_it_fails.png",
                  "ranking.png", "before_after.png", "report.txt", "parameters.json"):
         assert (out / name).stat().st_size > 0, name
-    assert "verdict: " in printed and "hidden in the demo data: reinforcement" in printed
+    assert "verdict: " in printed and "hidden in the demo data: clamp_compliance" in printed
     assert np.isfinite(ft.load_law(out / "parameters.json").moment(0.05, 2e4, 0.075))
 
 

@@ -121,8 +121,9 @@ def test_sharded_over_four_host_devices_equals_single_device(soft, tmp_path):
     inputs = tmp_path / "inputs.npz"
     out = tmp_path / "sharded.npz"
     np.savez(inputs, p=PRESSURE, r=RADIUS, length=LENGTH, out=str(out))
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4",
-               JAX_PLATFORMS="cpu", PYTHONPATH=str(REPO))
+    # Four forced host devices; keep the single-threaded kernels of tests/conftest.py.
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu", PYTHONPATH=str(REPO))
     done = subprocess.run([sys.executable, "-c", SHARDED, str(inputs), str(SOFT_WALL),
                            str(TIP_LOAD), ",".join(COMPARED)], env=env, cwd=REPO,
                           capture_output=True, text=True, timeout=300)

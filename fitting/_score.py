@@ -1,0 +1,157 @@
+"""Statistics of candidate effects at a fitted model: the score test at the null, chi^2,
+the linearised leave-one-curve-out error, and how much of a candidate's effect the model's
+fitted parameters can absorb (formulas and sources in :mod:`fitting._diagnose`).
+
+All work on the residuals and the Jacobian of a fit's last evaluation (``FitResult.residual``
+and ``FitResult.jacobian``, every coordinate's column): no new evaluation, no compilation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import scipy.stats
+
+from ._result import FitResult
+
+
+def parameter_names(effect) -> tuple[str, ...]:
+    """``effect.parameter`` names of an effect class's parameters, in order."""
+    return tuple(f"{effect.name}.{p.name}" for p in effect.parameters)
+
+@dataclasses.dataclass(frozen=True)
+class ScoreTest:
+    """Score test of freeing ``names`` (held at their null values in the fit).
+
+    statistic: ``S`` (chi^2 units); dof: number of parameters; p_value; score: ``U``
+    (per parameter, noise units per parameter unit).
+    """
+
+    names: tuple[str, ...]
+    statistic: float
+    dof: int
+    p_value: float
+    score: tuple[float, ...]
+
+
+def _data_rows(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals ``[n]`` and Jacobian ``[n, n_names]`` of the data rows (no prior rows)."""
+    n_data = result.problem.batch.force.size
+    return result.residual[:n_data], result.jacobian[:n_data]
+
+
+def _lower_bound(problem, name: str) -> float:
+    return float(problem.lower[problem.names.index(name)])
+
+
+def score_test(result: FitResult, names) -> ScoreTest:
+    """Score test for the coordinates ``names`` of ``result``'s problem, which the fit held
+    fixed (at their null values). Uses the Jacobian of the fit's last evaluation: no new
+    evaluation, no new compilation."""
+    problem = result.problem
+    names = tuple(names)
+    index = [problem.names.index(name) for name in names]
+    if any(i in problem.free_index for i in index):
+        raise ValueError(f"{names}: a score test needs the coordinates held fixed in the fit")
+    r, jac = _data_rows(result)
+    j_b = jac[:, np.asarray(problem.free_index)]
+    j_c = jac[:, np.asarray(index)]
+    score = -j_c.T @ r
+    projection = j_c.T @ j_b @ np.linalg.pinv(j_b.T @ j_b, rcond=1e-12, hermitian=True)
+    information = j_c.T @ j_c - projection @ (j_b.T @ j_c)
+    statistic = float(score @ np.linalg.pinv(information, rcond=1e-12, hermitian=True) @ score)
+    dof = len(names)
+    lower = np.array([_lower_bound(problem, name) for name in names])
+    at_bound = np.isclose(result.vector[np.asarray(index)], lower)
+    if dof == 1 and at_bound[0]:
+        if score[0] <= 0:
+            statistic = 0.0
+        p_value = 0.5 * float(scipy.stats.chi2.sf(statistic, 1)) if statistic > 0 else 1.0
+    else:
+        p_value = float(scipy.stats.chi2.sf(statistic, dof))
+    return ScoreTest(names, max(statistic, 0.0), dof, p_value, tuple(float(u) for u in score))
+
+
+# --------------------------------------------------------------------------------------------
+# Goodness of a model: chi^2, BIC, cross-validation
+# --------------------------------------------------------------------------------------------
+
+
+def chi2(result: FitResult) -> float:
+    """Weighted chi^2 of the data in noise units (the prior rows excluded)."""
+    r, _ = _data_rows(result)
+    return float(r @ r)
+
+
+def point_count(result: FitResult) -> int:
+    return int(np.sum(result.problem.batch.weight > 0))
+
+
+def cross_validated_rmse(result: FitResult) -> float:
+    """Leave-one-curve-out RMSE [N], linearised: per curve one Gauss-Newton step from the
+    optimum without that curve's rows, then that curve predicted (module docstring).
+    Coordinates at a bound stay there; directions the remaining data do not determine are
+    left unchanged (pseudo-inverse)."""
+    problem = result.problem
+    free = np.asarray(problem.free_index)
+    lower, upper = problem.free_bounds
+    x = result.free_values
+    movable = ~(np.isclose(x, lower) | np.isclose(x, upper))
+    r_all = result.residual
+    jac_all = result.jacobian[:, free][:, movable]
+    curves, width = problem.batch.force.shape
+    total = 0.0
+    for c in range(curves):
+        rows = np.zeros(r_all.size, bool)
+        rows[c * width:(c + 1) * width] = True
+        keep = ~rows
+        j_keep = jac_all[keep]
+        normal = j_keep.T @ j_keep
+        scale = np.sqrt(np.maximum(np.diag(normal), 1e-300))
+        step = -(np.linalg.pinv(normal / np.outer(scale, scale), rcond=1e-10, hermitian=True)
+                 @ (j_keep.T @ r_all[keep] / scale)) / scale
+        predicted = r_all[rows] + jac_all[rows] @ step
+        total += float(predicted @ predicted)
+    weight = problem.batch.weight.reshape(-1)
+    return float(problem.noise * math.sqrt(total / np.sum(weight)))
+
+
+# --------------------------------------------------------------------------------------------
+# Candidates and their ranking
+
+
+def _orthonormal(matrix: np.ndarray, rcond: float = 1e-9) -> np.ndarray:
+    if matrix.size == 0:
+        return matrix
+    u, s, _ = np.linalg.svd(matrix, full_matrices=False)
+    keep = s > rcond * max(float(s[0]), 1e-300) if s.size else s > 0
+    return u[:, keep]
+
+
+def absorbed_free_effects(result: FitResult, candidates) -> dict[str, np.ndarray]:
+    """Per candidate (held at its null in ``result``): ``(I - P_b) J_c``, the part of its
+    effect on the curves that refitting the current parameters cannot reproduce."""
+    _, jac = _data_rows(result)
+    q_b = _orthonormal(jac[:, np.asarray(result.problem.free_index)])
+    out = {}
+    for effect in candidates:
+        index = [result.problem.names.index(n) for n in parameter_names(effect)]
+        j_c = jac[:, index]
+        out[effect.name] = (j_c - q_b @ (q_b.T @ j_c), j_c)
+    return out
+
+
+def _share(residual_part, whole) -> float:
+    norm = float(np.sum(whole**2))
+    return float(np.sum(residual_part**2) / norm) if norm > 0 else 0.0
+
+
+def canonical_correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest canonical correlation (cosine of the smallest principal angle) of the column
+    spaces of ``a`` and ``b``."""
+    qa, qb = _orthonormal(a), _orthonormal(b)
+    if qa.shape[1] == 0 or qb.shape[1] == 0:
+        return 0.0
+    return float(np.linalg.svd(qa.T @ qb, compute_uv=False)[0])
