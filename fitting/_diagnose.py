@@ -109,8 +109,8 @@ class CandidateRanking:
     the null; rmse_N, chi2, delta_chi2, delta_bic, delta_aic, cv_rmse_N: of the refit with
     the candidate freed (deltas against the current model); estimates: the refit's values of
     the candidate's parameters; significant: all three rules of the module docstring hold;
-    reasons: why not, in words; absorbed_share: the share of its effect the current
-    parameters cannot absorb; fit: the refit (not serialised).
+    reasons: why not, in words; unabsorbed_share: the share of its effect the current
+    parameters cannot absorb (1: none of it is absorbed); fit: the refit (not serialised).
     """
 
     effect: str
@@ -127,15 +127,14 @@ class CandidateRanking:
     estimates: dict
     significant: bool
     reasons: tuple[str, ...]
-    absorbed_share: float
+    unabsorbed_share: float
     fit: FitResult = dataclasses.field(repr=False, compare=False)
 
     def to_json(self) -> dict:
         row = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "fit"}
         row["parameters"] = list(self.parameters)
         row["reasons"] = list(self.reasons)
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in row.items()}
+        return {k: _finite(v) if isinstance(v, float) else v for k, v in row.items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,9 +211,13 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
             cv_rmse_N=cv, estimates={name: float(refit.vector[problem.names.index(name)])
                                      for name in names},
             significant=not reasons, reasons=tuple(reasons),
-            absorbed_share=_share(residual_part, whole), fit=refit))
+            unabsorbed_share=_share(residual_part, whole), fit=refit))
     rows.sort(key=lambda row: (not row.significant, row.delta_bic))
     return rows, cv_now
+
+
+def _finite(value: float):
+    return value if math.isfinite(value) else None
 
 
 def _failed_candidate(effect, names, test, failure, current) -> CandidateRanking:
@@ -223,7 +226,7 @@ def _failed_candidate(effect, names, test, failure, current) -> CandidateRanking
         effect=effect.name, kind=effect.kind, parameters=names,
         score_statistic=test.statistic, score_p_value=test.p_value, rmse_N=nan, chi2=nan,
         delta_chi2=nan, delta_bic=math.inf, delta_aic=math.inf, cv_rmse_N=nan, estimates={},
-        significant=False, reasons=(f"the refit failed: {failure}",), absorbed_share=nan,
+        significant=False, reasons=(f"the refit failed: {failure}",), unabsorbed_share=nan,
         fit=current)
 
 
@@ -253,8 +256,10 @@ def _spread_words(data: MeasuredData, quantities) -> tuple[list[str], list[str]]
 
 
 def separation_statements(current: FitResult, candidates, ranking) -> list[str]:
-    """Sentences on candidates the data cannot tell apart from the pivots or each other,
-    for candidates whose score test or refit says they matter."""
+    """Sentences on candidates this data cannot test (they change nothing), cannot tell
+    apart from the current model (its parameters absorb their effect: with the smallest size
+    that would still be detected), and pairs that change the curves alike (among candidates
+    whose score test or refit says they matter)."""
     by_name = {c.name: c for c in candidates}
     rows = {row.effect: row for row in ranking}
     effects = absorbed_free_effects(current, candidates)
@@ -268,7 +273,7 @@ def separation_statements(current: FitResult, candidates, ranking) -> list[str]:
             _, fixed = _spread_words(data, effect.separated_by)
             words.append(f"{effect.name} cannot be tested with this data: it does not change "
                          "the model's curves here. " + _separation_advice([effect], fixed))
-    for name in relevant:
+    for name in [c.name for c in candidates if c.name not in untestable and c.name in rows]:
         residual_part, whole = effects[name]
         share = _share(residual_part, whole)
         if share < ABSORBED_SHARE:
@@ -277,7 +282,7 @@ def separation_statements(current: FitResult, candidates, ranking) -> list[str]:
             words.append(
                 f"{name} cannot be told apart from the current model with this data: refitting "
                 f"its parameters ({_model_words(current)}) reproduces {1 - share:.1%} of "
-                f"{name}'s effect on the curves. "
+                f"{name}'s effect on the curves, so its size cannot be read from them. "
                 + _separation_advice([effect], fixed))
     for i, a in enumerate(relevant):
         for b in relevant[i + 1:]:

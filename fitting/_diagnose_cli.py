@@ -179,10 +179,11 @@ def _writers(diagnosis, document, report) -> dict:
 
 def _ranking_lines(rows) -> list[str]:
     lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'RMSE [N]':>10}{'ΔBIC':>10}"
-             f"{'CV RMSE [N]':>13}  significant"]
+             f"{'CV RMSE [N]':>13}{'unabsorbed':>12}  significant"]
     for row in rows:
         lines.append(f"  {row.effect:<20}{row.score_statistic:>10.3g}{row.score_p_value:>10.2g}"
-                     f"{row.rmse_N:>10.4g}{row.delta_bic:>10.1f}{row.cv_rmse_N:>13.4g}  "
+                     f"{row.rmse_N:>10.4g}{row.delta_bic:>10.1f}{row.cv_rmse_N:>13.4g}"
+                     f"{row.unabsorbed_share:>12.1%}  "
                      + ("yes" if row.significant else "no: " + "; ".join(row.reasons)))
     return lines
 
@@ -193,6 +194,8 @@ def diagnosis_report(diagnosis) -> str:
     base = diagnosis.baseline_comparison
     source = "given" if diagnosis.noise_given else "estimated from the data, model-free"
     lines.append(f"noise: {diagnosis.noise:.4g} N ({source})")
+    lines.append("(unabsorbed: the share of a candidate's effect on the curves that refitting "
+                 "the current model's parameters cannot reproduce)")
     lines.append("")
     lines.append("baseline (paper scaling, no effect): " + base.verdict.words)
     worst = base.worst_groups(3)
