@@ -16,7 +16,7 @@ On a shared 2-core machine, multi-threaded BLAS and Eigen oversubscribe the core
 dense KKT solve slows down many times; single-threaded runs are measured with::
 
     OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 \
-    XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \
+    XLA_FLAGS="--xla_cpu_multi_thread_eigen=false" \
     python experiments/bench_kite.py
 
 Writes ``experiments/results/bench_kite.txt`` (``--out``). Timings are medians of warm

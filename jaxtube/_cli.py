@@ -6,6 +6,12 @@ Subcommands (one ``_add_<name>`` function registers each; add a new one to
 - ``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
   in :mod:`jaxtube._spec`), compile and run the load path, and write ``path.csv``,
   ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
+- ``jaxtube fit DATA.csv --out DIR`` / ``jaxtube predict ...``: calibration
+  (:mod:`fitting._commands`).
+- ``jaxtube diagnose DATA.csv --out DIR [--effect FILE.py:Class]`` / ``jaxtube demo``: which
+  physical effect the model lacks (:mod:`fitting._diagnose_cli`).
+- ``jaxtube sweep ...``: a law over a pressure x radius x length grid
+  (:mod:`fitting._sweep_command`).
 
 Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
 are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).

@@ -7,16 +7,28 @@ dense solve that takes ~6 ms on one thread took 150-300 ms under that contention
 (measured on this project's CI-sized machine, README "Performance"). The flags must be set
 before JAX initialises its CPU backend, hence here, before ``import jax``; a value the
 caller already put in ``XLA_FLAGS`` is kept.
+
+Compiled programs go to a persistent cache shared by the workers (below).
 """
 
 import os
 
-_SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+_SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false"
 if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + _SINGLE_THREAD).strip()
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
+# One persistent compilation cache for the two workers (and the experiment scripts they
+# start): a model both need is compiled once. Entries are keyed by the compiled program, so
+# a stale cache cannot serve changed code.
+_CACHE = Path(os.environ.get("JAXTUBE_TEST_CACHE",
+                             Path(tempfile.gettempdir()) / "jaxtube-test-compilation-cache"))
+jax.config.update("jax_compilation_cache_dir", str(_CACHE))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)

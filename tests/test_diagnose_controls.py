@@ -1,9 +1,6 @@
-"""Negative controls, the shared dataset, the comparison statistics and the demo.
+"""The shared dataset, the comparison statistics, the demo and bad input (the negative
+controls share the effect datasets' compiled model: ``tests/test_diagnose_effects.py``).
 
-- Data from the same model without any effect (continuum solver): nothing may be claimed,
-  however much an extra parameter lowers the training error. With one radius the verdict
-  is empty; with several radii it holds at most ``radius_scaling`` (a model-structure
-  extension, not a physical effect).
 - ``tests/data/cantilever_shear.csv`` (a copy of the shared dataset: a tension-field tube
   with Fichter shear, made outside this project): ``shear`` is found and the error falls to
   near the noise.
@@ -14,7 +11,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 import fitting as ft
 from jaxtube._cli import main
@@ -24,32 +20,6 @@ DATA = Path(__file__).parent / "data"
 
 def _diagnose(path):
     return ft.diagnose(ft.load_measurements(path), options=ft.DiagnoseOptions(progress=False))
-
-
-@pytest.fixture(scope="module")
-def one_radius():
-    return _diagnose(DATA / "effects" / "none_one_radius.csv")
-
-
-def test_nothing_missing_one_radius(one_radius):
-    assert one_radius.verdict == ()
-    assert one_radius.final.rmse <= 1.3 * one_radius.noise
-    assert not one_radius.baseline_comparison.verdict.systematic
-    assert "Nothing is missing" in one_radius.statements[0]
-
-
-def test_a_candidate_the_data_cannot_test_is_named_with_the_data_that_would(one_radius):
-    """One radius: radius_scaling changes nothing (r / r_ref = 1); the diagnosis says so
-    and says which data would test it."""
-    words = " ".join(one_radius.statements)
-    assert "radius_scaling cannot be tested with this data" in words
-    assert "single radius (75 mm)" in words and "several radii" in words
-
-
-def test_nothing_physical_claimed_several_radii():
-    diagnosis = _diagnose(DATA / "effects" / "none.csv")
-    assert set(diagnosis.verdict) <= {"radius_scaling"}
-    assert diagnosis.final.rmse <= 1.3 * diagnosis.noise
 
 
 def test_shared_dataset_shear_is_found():

@@ -4,8 +4,9 @@ Each dataset in ``tests/data/effects/`` was made by the continuum shooting solve
 (``fitting.continuum``, not jaxtube's rigid-segment chain) with one built-in effect switched
 on, at several pressures, radii and lengths, with noise (``tests/data/effects/README.md``).
 The fitted model starts without any effect; :func:`fitting.diagnose` must name that effect
-and no other physical effect, and bring the error down to the noise. All datasets share one
-compiled model (same shape, same candidates).
+and no other physical effect, and bring the error down to the noise. Negative controls: data
+from the same model without any effect. All datasets share one compiled model (same shape,
+same candidates), hence one file.
 """
 
 import functools
@@ -74,6 +75,50 @@ def test_reinforcement_is_absorbed_by_the_pivots_and_said_so():
     assert "reinforcement cannot be told apart from the current model with this data" in words
     row = next(r for r in diagnosis.final_candidates if r.effect == "reinforcement")
     assert row.unabsorbed_share < 0.05 and not row.significant
+
+
+def test_the_effect_parameter_is_within_its_standard_errors():
+    """Hidden shear: the model with shear reports the flexibility with a standard error that
+    covers the generating value (3 standard errors)."""
+    truth = 1.0 / (2 * np.pi * 0.5 * 5e3)
+    estimate = diagnosis_of("shear").steps[0].fit.parameter("shear.flexibility")
+    assert estimate.identified
+    assert abs(estimate.value - truth) < 3 * estimate.standard_error
+
+
+def test_score_test_flags_the_missing_effect_and_only_then():
+    """Score test at the null (no refit): overwhelming for shear on data with hidden shear,
+    not significant on data from the same model without any effect."""
+    hidden = ft.score_test(diagnosis_of("shear").baseline, ["shear.flexibility"])
+    assert hidden.statistic > 100 and hidden.p_value < 1e-10 and hidden.score[0] > 0
+    absent = ft.score_test(diagnosis_of("none").baseline, ["shear.flexibility"])
+    assert absent.p_value > 0.01, absent
+
+
+def test_nothing_missing_one_radius():
+    """Negative control: no effect, one radius: nothing may be claimed, however much an extra
+    parameter lowers the training error."""
+    diagnosis = diagnosis_of("none_one_radius")
+    assert diagnosis.verdict == ()
+    assert diagnosis.final.rmse <= 1.3 * diagnosis.noise
+    assert not diagnosis.baseline_comparison.verdict.systematic
+    assert "Nothing is missing" in diagnosis.statements[0]
+
+
+def test_a_candidate_the_data_cannot_test_is_named_with_the_data_that_would():
+    """One radius: radius_scaling changes nothing (r / r_ref = 1); the diagnosis says so
+    and says which data would test it."""
+    words = " ".join(diagnosis_of("none_one_radius").statements)
+    assert "radius_scaling cannot be tested with this data" in words
+    assert "single radius (75 mm)" in words and "several radii" in words
+
+
+def test_nothing_physical_claimed_several_radii():
+    """Negative control with several radii: at most radius_scaling (a model-structure
+    extension, not a physical effect)."""
+    diagnosis = diagnosis_of("none")
+    assert set(diagnosis.verdict) <= {"radius_scaling"}
+    assert diagnosis.final.rmse <= 1.3 * diagnosis.noise
 
 
 def test_each_step_records_the_ranking_that_chose_it():

@@ -6,7 +6,6 @@ solver with the same physics; at their null values the effects must leave the pl
 cantilever unchanged.
 """
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -77,49 +76,3 @@ def test_effect_needing_a_missing_rig_feature_is_refused():
     model = TubeModel(jt.LinearLaw(EI), effects=(fx.Shear(1e-4),))
     with pytest.raises(ValueError, match="needs a rig with features"):
         CantileverRig(segments=4).specimen_parameters(model, PRESSURE, RADIUS, LENGTH)
-
-
-EFFECT_DATA = Path(__file__).parent / "data" / "effects"
-
-
-def _baseline(name):
-    """Pure bending fit with the shear effect compiled in but held at its null value."""
-    import fitting as ft
-
-    data = ft.load_measurements(EFFECT_DATA / f"{name}.csv")
-    return data, ft.fit(data, effects=(ft.Shear,), options=ft.FitOptions(
-        progress=False, fixed={"shear.flexibility": 0.0}))
-
-
-@pytest.fixture(scope="module")
-def shear_baseline():
-    return _baseline("shear")
-
-
-def test_adding_the_hidden_effect_brings_the_error_down_to_the_noise(shear_baseline):
-    """Data with hidden Fichter shear (continuum solver, tests/data/effects/shear.csv): the
-    pure bending fit misses by several noise levels; freeing the shear effect brings the
-    RMSE to the noise and recovers the shear flexibility within its standard error. Both fits
-    share one compiled model (the effect held at its null value vs free)."""
-    import fitting as ft
-
-    data, baseline = shear_baseline
-    with_shear = ft.fit(data, effects=(ft.Shear,), options=ft.FitOptions(progress=False))
-    assert baseline.rmse > 2.5 * baseline.noise
-    assert with_shear.rmse < 1.3 * with_shear.noise
-    estimate = with_shear.parameter("shear.flexibility")
-    assert estimate.identified
-    assert abs(estimate.value - SHEAR_FLEXIBILITY) < 3 * estimate.standard_error
-
-
-def test_score_test_flags_the_missing_effect_and_only_then(shear_baseline):
-    """Score test at the null (no refit): overwhelming for shear on data with hidden shear,
-    not significant on data from the same model without any effect (same compiled model)."""
-    from fitting import score_test
-
-    _, baseline = shear_baseline
-    hidden = score_test(baseline, ["shear.flexibility"])
-    assert hidden.statistic > 100 and hidden.p_value < 1e-10 and hidden.score[0] > 0
-    _, clean = _baseline("none")
-    absent = score_test(clean, ["shear.flexibility"])
-    assert absent.p_value > 0.01, absent

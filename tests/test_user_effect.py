@@ -31,12 +31,13 @@ HIDDEN_MASS = 0.5  # kg (tests/data/effects/README.md)
 
 
 def test_user_effect_matches_the_continuum_tip_mass():
-    """Linear law EI = 200 N m^2, L = 1 m, a 2 kg tip mass: the rig's force at the
-    continuum solver's deflections (zeroed at the sagged shape) is the continuum's load."""
+    """Linear law EI = 200 N m^2, L = 1 m, a 5 kg tip mass: the rig's force at the
+    continuum solver's deflections (zeroed at the sagged shape) is the continuum's load. A
+    linear law makes the mass act only through large rotations: loads up to P L^2 / EI = 1."""
     tip_mass = resolve_effect(EFFECT)
     assert tip_mass.name == "tip_mass" and tip_mass.name not in ft.BUILT_IN_EFFECTS
-    loads = np.array([2.0, 30.0])
-    reference = continuum.CantileverModel(1.0, continuum.linear_law(200.0), tip_mass=2.0)
+    loads = np.array([5.0, 200.0])
+    reference = continuum.CantileverModel(1.0, continuum.linear_law(200.0), tip_mass=5.0)
     deflection = np.array([reference.tip_deflection(p) for p in loads])
     plain = continuum.CantileverModel(1.0, continuum.linear_law(200.0))
     # The mass matters at large deflection (the test is not trivially passed without it).
@@ -49,7 +50,7 @@ def test_user_effect_matches_the_continuum_tip_mass():
         prediction = rig.curve(model, 2e4, 0.075, 1.0, jnp.asarray(deflection))
         return prediction.force, prediction.converged
 
-    predicted, converged = force(2.0)
+    predicted, converged = force(5.0)
     assert bool(np.all(converged))
     np.testing.assert_allclose(np.asarray(predicted), loads, rtol=3e-3)
 
@@ -68,7 +69,7 @@ def test_hidden_user_effect_is_found_through_the_api(hidden_tip_mass):
     assert not [name for name in diagnosis.verdict if name in ft.BUILT_IN_EFFECTS]
     estimate = diagnosis.steps[0].candidates[0].estimates["tip_mass.mass"]
     assert estimate == pytest.approx(HIDDEN_MASS, rel=0.15)
-    assert diagnosis.baseline.rmse > 2 * diagnosis.noise
+    assert diagnosis.baseline.rmse > 1.3 * diagnosis.noise  # the baseline fails the criterion
     assert diagnosis.final.rmse <= 1.3 * diagnosis.noise
 
 
