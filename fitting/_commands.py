@@ -125,14 +125,22 @@ def _bad_out(out: Path) -> bool:
     return False
 
 
-def run_fit(args) -> int:
-    started = time.perf_counter()
+def load_input(args):
+    """The measurements of ``args.data`` for a command writing into ``args.out``, or None
+    after printing why not (bad output directory, bad data: exit code 2, nothing written)."""
     if _bad_out(args.out):
-        return 2
+        return None
     try:
-        data = load_measurements(args.data)
+        return load_measurements(args.data)
     except DataError as error:
         print(f"error: {error}", file=sys.stderr)
+        return None
+
+
+def run_fit(args) -> int:
+    started = time.perf_counter()
+    data = load_input(args)
+    if data is None:
         return 2
     from ._rig import DEFAULT_SEGMENTS, CantileverRig
 

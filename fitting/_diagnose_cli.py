@@ -37,8 +37,7 @@ from pathlib import Path
 from jaxtube._cli import positive_float, positive_int, write_directory
 
 from ._calibrate import FitError
-from ._commands import _bad_out, _pivots
-from ._data import DataError, load_measurements
+from ._commands import _pivots, load_input
 from ._effects import resolve_effect
 from ._scaling import PivotScaling
 
@@ -106,12 +105,8 @@ def run_diagnose(args) -> int:
     from ._rig import DEFAULT_SEGMENTS, CantileverRig
 
     started = time.perf_counter()
-    if _bad_out(args.out):
-        return 2
-    try:
-        data = load_measurements(args.data)
-    except DataError as error:
-        print(f"error: {error}", file=sys.stderr)
+    data = load_input(args)
+    if data is None:
         return 2
     try:
         scaling = PivotScaling(pivots_per_regime=args.pivots)

@@ -222,12 +222,13 @@ class CantileverRig:
         path = jt.DisplacementControl(tip, DOWN, deflection + sag)
         sol = jt.solve_path(structure, params, path, self.solver)
         sol = eqx.tree_at(lambda s: s.converged, sol, sol.converged & unloaded.converged)
-        tube_nodes = set(structure.tube_node_ids[0])
-        joints = np.asarray([(structure.joint_node[s] - min(tube_nodes)) if
-                             structure.joint_node[s] in tube_nodes else 0
+        # Each spring joint's arc-length position from the unit template (the specimen runs
+        # along +x from 0 to 1; the clamp-spring tube lies behind the clamp, at 0).
+        _, unit = self.template()
+        x = np.clip(np.asarray(unit.node_position)[:, 0], 0.0, 1.0)
+        joints = np.asarray([x[structure.joint_node[s]]
                              for s, spring in enumerate(structure.joint_spring) if spring])
-        position = jnp.broadcast_to(jnp.asarray(joints / self.segments, float),
-                                    sol.joint_regime.shape)
+        position = jnp.broadcast_to(jnp.asarray(joints, float), sol.joint_regime.shape)
         return RigPrediction(force=sol.control_force, converged=sol.converged,
                              iterations=sol.iterations, joint_regime=sol.joint_regime,
                              joint_position=position)

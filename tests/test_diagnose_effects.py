@@ -121,6 +121,19 @@ def test_nothing_physical_claimed_several_radii():
     assert diagnosis.final.rmse <= 1.3 * diagnosis.noise
 
 
+def test_every_point_is_in_one_regime_group_and_one_wrinkled_extent_group():
+    """Where it fails: the groups by regime and by wrinkled extent each partition the points,
+    and wrinkled points reach somewhere along the tube (0 < extent <= 1)."""
+    comparison = diagnosis_of("shear").baseline_comparison
+    points = sum(c.point_count for c in diagnosis_of("shear").baseline.problem.data)
+    for quantity in ("regime", "wrinkled_extent", "pressure", "length"):
+        assert sum(g.points for g in comparison.groups_of(quantity)) == points, quantity
+    wrinkled = sum(g.points for g in comparison.groups_of("regime") if g.value >= 1)
+    assert wrinkled > 0
+    assert wrinkled == sum(g.points for g in comparison.groups_of("wrinkled_extent")
+                           if g.label != "no wrinkle")
+
+
 def test_each_step_records_the_ranking_that_chose_it():
     diagnosis = diagnosis_of("shear")
     step = diagnosis.steps[0]
