@@ -448,7 +448,8 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
                                    fit_options)
         if bar is not None:
             bar.update(1)
-        current, comparison_now = baseline, compare(baseline)
+        baseline_comparison = compare(baseline)
+        current, comparison_now = baseline, baseline_comparison
         remaining = list(candidates)
         steps = []
         ranking, cv_now = rank_candidates(current, remaining, options, bar)
@@ -481,14 +482,14 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         if bar is not None:
             bar.close()
     verdict = tuple(step.added for step in steps)
-    statements = _verdict_words(baseline, compare(baseline), steps, comparison_now, ranking,
+    statements = _verdict_words(baseline, baseline_comparison, steps, comparison_now, ranking,
                                 candidates)
     statements += separation_statements(current, remaining, ranking) if ranking else []
     if undetermined:
         statements.append(
             "Held at their baseline values throughout (the data do not determine them, so "
             f"they would only drift): {', '.join(undetermined)}.")
-    return Diagnosis(baseline=baseline, baseline_comparison=compare(baseline),
+    return Diagnosis(baseline=baseline, baseline_comparison=baseline_comparison,
                      baseline_cv_rmse_N=baseline_cv, steps=tuple(steps),
                      final_candidates=tuple(ranking), final_cv_rmse_N=cv_now,
                      verdict=verdict, statements=tuple(statements),
