@@ -28,6 +28,7 @@ from ._diagnose import (
     default_candidates,
     diagnose,
 )
+from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
 from ._effects import (
     BUILT_IN_EFFECTS,
     MODEL_EXTENSIONS,
@@ -50,6 +51,7 @@ __all__ = [
     "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
     "ResidualVerdict", "compare", "cross_validated_rmse", "default_candidates", "diagnose",
     "fit_problem",
+    "before_after_figure", "fit_figure", "ranking_figure", "where_it_fails_figure",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
     "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",

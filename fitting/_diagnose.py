@@ -367,6 +367,13 @@ class Diagnosis:
     def noise(self) -> float:
         return self.baseline.noise
 
+    def report(self) -> str:
+        """The text ``jaxtube diagnose`` prints and writes to ``report.txt``: where the
+        baseline fails, the ranking at each step, the before/after table, the verdict."""
+        from ._diagnose_cli import diagnosis_report
+
+        return diagnosis_report(self)
+
     def to_json(self) -> dict:
         def model(result: FitResult, comparison: Comparison, cv: float) -> dict:
             return {"rmse_N": result.rmse, "chi2": chi2(result), "cv_rmse_N": cv,

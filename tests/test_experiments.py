@@ -13,7 +13,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = ("fig4_spline_law", "fig5_7_cantilever_fits", "fig6_pivot_scaling",
-           "empirical_2011_representation")
+           "empirical_2011_representation", "fig9_kite_force_deflection",
+           "hidden_effect_workflow")
 
 
 @pytest.fixture(scope="module")
