@@ -9,9 +9,23 @@ Float64: Newton tolerances need double precision, so importing jaxtube turns on
 ``jax_enable_x64`` (documented in the README). Set the environment variable
 ``JAXTUBE_NO_X64=1`` to keep JAX's default; solves then raise a clear ``TypeError``
 instead of silently failing in float32.
+
+Threads: importing jaxtube before JAX has started selects single-threaded XLA CPU kernels
+(``--xla_cpu_multi_thread_eigen=false`` in ``XLA_FLAGS``) unless ``XLA_FLAGS`` already sets
+that flag or ``JAXTUBE_XLA_THREADS=1`` (README, "Threads").
 """
 
 import os as _os
+
+# Single-threaded XLA CPU (Eigen) kernels unless the user chose: this package's programs are
+# many small dense operations, for which intra-op threads only add contention; on 2-core
+# machines the default threads made kite solves 16x and diagnoses ~4x slower (README,
+# "Threads"). XLA reads the flag when its CPU backend starts, so it takes effect only if
+# JAX has not run anything yet. Opt out with JAXTUBE_XLA_THREADS=1, or set the flag yourself.
+if ("xla_cpu_multi_thread_eigen" not in _os.environ.get("XLA_FLAGS", "")
+        and _os.environ.get("JAXTUBE_XLA_THREADS", "0") in ("", "0")):
+    _os.environ["XLA_FLAGS"] = (_os.environ.get("XLA_FLAGS", "")
+                                + " --xla_cpu_multi_thread_eigen=false").strip()
 
 import jax as _jax
 
