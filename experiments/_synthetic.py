@@ -70,11 +70,21 @@ def measured(curves, noise_fraction: float = 0.015, seed: int = 7) -> fitting.Me
         return fitting.load_measurements(path)
 
 
-def fit(data: fitting.MeasuredData, quick: bool) -> fitting.FitResult:
-    """The default calibration (paper form, pivots 1,1,1); small in quick mode."""
+def fit(data: fitting.MeasuredData, quick: bool, form: str = "paper") -> fitting.FitResult:
+    """The default calibration (pivots 1,1,1; ``form`` "paper" ``A (p r^3)^B`` or
+    "separate" ``A p^B r^C``); small in quick mode."""
     rig = fitting.CantileverRig(segments=6 if quick else fitting.DEFAULT_SEGMENTS)
     options = fitting.FitOptions(max_iterations=4 if quick else 60, progress=not quick)
-    return fitting.fit(data, fitting.PivotScaling(), rig, options)
+    return fitting.fit(data, fitting.PivotScaling(form=form), rig, options)
+
+
+def determined(result: fitting.FitResult, coordinate: str, pivot: int) -> bool:
+    """Whether the fit determines the (cumulative) pivot ``pivot`` (1-based) of
+    ``coordinate`` ("kappa" or "M"): every fitted parameter of it and of the pivots before
+    it, whose increments it sums, is identified (``FitResult.parameters``)."""
+    prefixes = tuple(f"{coordinate}[{k}]." for k in range(1, pivot + 1))
+    rows = [p for p in result.parameters if p.name.startswith(prefixes) and not p.fixed]
+    return all(p.identified for p in rows)
 
 
 def save(figure, path: Path) -> None:

@@ -8,8 +8,11 @@ geometry are not public, so this is a stand-in of the same kind, computed by jax
 height 1.0 m, radius 85 mm at the centre to 45 mm at the tips, tension-field law
 E t = 150 kN/m, 0.25 kg/m self-weight), the leading edge alone at two segment counts (the
 finer one shows the discretisation error) and, in full mode, with four chordwise struts.
-Points are coloured by the worst joint regime along the kite; the crown deflections where
-wrinkling and collapse first appear are marked.
+Points are coloured by the worst joint regime along the kite; the printed summary gives
+the crown deflections where wrinkling and collapse first appear. The struts carry only
+their own weight in this test, so they ride along almost rigidly and change the curve
+little (full mode: peak 161 N with and without them, wrinkling from 7 mm, collapse from
+119 mm).
 
     python experiments/fig9_kite_force_deflection.py [--quick] [--out FILE.png]
 
