@@ -19,29 +19,59 @@ dead vertical tip load along -z, ``segments`` rigid segments):
   whose moment only tends to Comer & Levy's ``pi p r^3``, the package's collapsed-regime
   threshold ``0.95 pi p r^3``; ``0.95 M_max`` for the 2011 law.
 - **tip deflection** ``v`` [m] at the given load ``F_tip``: the downward tip displacement of
-  the force-controlled equilibrium, reached in ``tip_steps`` equal load steps from the
-  unloaded shape (each step warm-started from the previous one).
+  the force-controlled equilibrium.
 
-**Geometric nonlinearity.** Every load is found with the full large-rotation equilibrium of
-the rigid-segment chain (``jaxtube.equilibrium``), not with the small-deflection estimate
-``M / L``: the root moment of a dead vertical tip load is ``F l(F)``, with the lever arm
-``l(F) = L - u(F)`` shortened by the tip's horizontal displacement. The load is found by the
-Newton iteration ``F_(k+1) = F_k + (M_target - M_root(F_k)) / M_root'(F_k)``, with the
-slope ``dM_root/dF`` of each equilibrium from the implicit function theorem (a ``jax.jvp``
-through the solve), starting from ``M_w / L`` on the unloaded shape (wrinkling) and
-continuing from the wrinkling equilibrium (collapse); each solve is warm-started from the
-previous one (the first collapse step uses ``F M_c / M_root``, a lower bound, since the
-wrinkling equilibrium sits at the law's kink). ``M_root(F)`` is increasing and concave on
-the stable branch, so the iterates approach from below, quadratically.
-The reported load is the one of the last solve, and ``moment_mismatch`` is
-``|M_root / M_target - 1|`` there; above ``moment_tolerance`` the point is reported as not
-converged.
+**Geometric nonlinearity.** Every load is found from the full large-rotation equilibrium of
+the rigid-segment chain, not from the small-deflection estimate ``M / L``: the root moment
+of a dead vertical tip load is ``F a_1``, with the lever arm ``a_1 = L - u`` shortened by the
+tip's horizontal displacement ``u``.
+
+**Two routes, one model.**
+
+- *Planar route* (a bare law: ``TubeModel`` without effects, or a law): the tip-loaded
+  cantilever is statically determinate and stays in the x-z plane, so the equilibrium of the
+  chain is the statics of its cuts, ``M(kappa_k) = F a_k`` at every joint ``k`` (lever arm
+  ``a_k`` from joint ``k`` to the tip), a system of ``n`` equations in ``n`` unknowns
+  (:mod:`fitting._planar_cantilever`, which derives it from the energy of
+  ``jaxtube._mechanics`` and shows that it is the same discrete model, not an
+  approximation). The wrinkling load fixes the root curvature at the law's wrinkling
+  curvature and solves for ``F`` and the other joint rotations; the collapse load likewise;
+  the tip deflection solves for the joint rotations at ``F_tip``. Each takes safeguarded
+  Newton steps until its residual is at most ``planar_tolerance``, at most
+  ``planar_*_steps`` of them (under ``vmap`` a chunk stops when its slowest point has
+  converged; a point's result does not depend on its chunk). A point whose equilibrium
+  residual is still above ``planar_tolerance`` is reported as not converged, and
+  ``moment_mismatch`` is ``|F a_1 / M_target - 1|`` (above ``moment_tolerance``: not
+  converged). The tests check
+  this route against single solves of the generic 3-D solver ``jaxtube.equilibrium``.
+- *Generic route* (a ``TubeModel`` with effects: reinforcement, self-weight, user effects;
+  effects that need rig features, such as clamp compliance and shear, are refused as
+  before): ``jaxtube.equilibrium`` of the 3-D chain with the effects applied by
+  :meth:`fitting.CantileverRig.specimen_parameters`. The tip deflection is reached in
+  ``tip_steps`` equal load steps from the unloaded shape (each step warm-started from the
+  previous one); each load is found by the Newton iteration
+  ``F_(k+1) = F_k + (M_target - M_root(F_k)) / M_root'(F_k)``, with the slope
+  ``dM_root/dF`` of each equilibrium from the implicit function theorem (a ``jax.jvp``
+  through the solve), starting from ``M_w / L`` on the unloaded shape (wrinkling) and
+  continuing from the wrinkling equilibrium (collapse); each solve is warm-started from the
+  previous one (the first collapse step uses ``F M_c / M_root``, a lower bound, since the
+  wrinkling equilibrium sits at the law's kink). ``M_root(F)`` is increasing and concave on
+  the stable branch, so the iterates approach from below, quadratically. The reported load
+  is the one of the last solve (``wrinkling_iterations``, ``collapse_iterations`` solves),
+  and ``moment_mismatch`` is ``|M_root / M_target - 1|`` there; above
+  ``moment_tolerance`` the point is reported as not converged. 30-60 times slower than
+  the planar route (``experiments/bench_sweep.py``), which also found a known defect of
+  this iteration, not investigated: at some specimens it returns its starting load
+  ``M_w / L`` as the wrinkling load with a reported mismatch of about 1e-15, while an
+  independent solve at that load has a root moment up to 7e-4 short of ``M_w``.
 
 **Failures are per point and never hidden.** Each quantity has a status code
 (:data:`STATUS_MESSAGES`); a quantity that is not available is NaN in the arrays and blank
 in the CSV, and its reason is given in words (:meth:`SweepResult.failure_reasons`). A law
-without a wrinkled (or collapsed) regime in the bracket gives ``STATUS_NO_REGIME``, which is
-"not applicable", not a failure.
+without a wrinkled (or collapsed) regime in the bracket gives ``STATUS_NO_REGIME``, and a
+root curvature that only a first segment turned past the vertical could carry (``kappa
+l_1 >= pi / 2``, ``l_1 = L / (2 n)``; the planar route) gives ``STATUS_UNREACHABLE``: both
+are "not applicable", not failures.
 
 **Batching.** All points are one ``jax.vmap`` of one jitted function, evaluated in chunks of
 ``chunk_size`` points (bounded memory; a ``tqdm`` progress bar over the chunks). With more
@@ -67,25 +97,30 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 import jaxtube as jt
 
+from ._planar_cantilever import deflection_at_load, load_at_root_curvature
 from ._rig import DEFAULT_SEGMENTS, DOWN, CantileverRig, TubeModel
 
 STATUS_OK = 0
 STATUS_NO_REGIME = 1
 STATUS_SOLVER_FAILED = 2
 STATUS_MOMENT_MISSED = 3
+STATUS_UNREACHABLE = 4
 STATUS_MESSAGES = {
     STATUS_OK: "ok",
     STATUS_NO_REGIME: "not applicable: the law has no such regime below 1e6 1/m",
     STATUS_SOLVER_FAILED: "equilibrium solve failed",
     STATUS_MOMENT_MISSED: "load iteration did not reach the target root moment",
+    STATUS_UNREACHABLE: ("not applicable: the root joint reaches this curvature only with "
+                         "its segment turned past the vertical (no equilibrium under a "
+                         "downward tip load)"),
 }
 
 #: Bracket of the bisection for the regime boundaries [1/m], and its halvings.
 CURVATURE_BRACKET = (1e-9, 1e6)
 _BISECTIONS = 64
 
-#: Solver of the sweep: the package's tolerances, fewer Newton steps (a point that needs
-#: more has failed; under ``vmap`` a failing point holds up its whole chunk).
+#: Solver of the generic route: the package's tolerances, fewer Newton steps (a point that
+#: needs more has failed; under ``vmap`` a failing point holds up its whole chunk).
 SWEEP_SOLVER = jt.NewtonKKT(max_steps=40)
 
 
@@ -95,13 +130,30 @@ class SweepSettings(eqx.Module):
     Attributes:
         segments: rigid segments of the cantilever (default 12, within about 0.1 % of the
             elastica; tests/test_beam_references.py).
-        wrinkling_iterations, collapse_iterations: solves of each load iteration.
-        tip_steps: load steps to the given tip load.
-        moment_tolerance: largest accepted ``|M_root / M_target - 1|``.
+        planar_wrinkling_steps, planar_collapse_steps, planar_deflection_steps: most
+            Newton steps of each planar solve (planar route; it stops when converged).
+            Over 0.1-0.5 bar, r = 30-150 mm, L = 0.5-2 m and tip loads 0.1-500 N (20,000
+            random specimens per law) the tension-field law (E t = 150 kN/m and 5 MN/m)
+            and the spline through it needed at most 3, 7 and 14 steps; Breukels' 2011
+            law, at radii below about 41 mm where its fit is out of range and its initial
+            stiffness nearly zero, up to 13 and 11 steps for a few points (with these
+            defaults 6 of its 18,756 wrinkling loads, 1 in 3,000, are reported as not
+            converged, 1 of them also with 40 steps; raise the steps for such laws).
+        planar_tolerance: largest accepted equilibrium residual of a planar solve, relative
+            to the reference moment (planar route).
+        wrinkling_iterations, collapse_iterations: solves of each load iteration (generic
+            route).
+        tip_steps: load steps to the given tip load (generic route).
+        moment_tolerance: largest accepted ``|M_root / M_target - 1|`` (both routes).
         chunk_size: points per compiled call (rounded up to a multiple of the devices).
+        solver: the equilibrium solver of the generic route.
     """
 
     segments: int = DEFAULT_SEGMENTS
+    planar_wrinkling_steps: int = 10
+    planar_collapse_steps: int = 12
+    planar_deflection_steps: int = 20
+    planar_tolerance: float = 1e-10
     wrinkling_iterations: int = 3
     collapse_iterations: int = 6
     tip_steps: int = 4
@@ -123,12 +175,15 @@ class SweepResult(eqx.Module):
         wrinkling_status, collapse_status, deflection_status: codes of
             :data:`STATUS_MESSAGES` (int).
         wrinkling_solver_result, collapse_solver_result, deflection_solver_result: the
-            worst ``jaxtube.RESULT_MESSAGES`` code of the solves of each quantity.
+            worst ``jaxtube.RESULT_MESSAGES`` code of the solves of each quantity (planar
+            route: 0 converged, 1 not converged in the fixed steps, 3 non-finite).
         wrinkling_mismatch, collapse_mismatch: ``|M_root / M_target - 1|`` at the reported
             load.
-        iterations: Newton steps of all solves of the point.
+        iterations: Newton steps of all solves of the point (planar route: of the fixed
+            steps, those that started from a residual above ``planar_tolerance``).
         settings: the :class:`SweepSettings`; devices: devices the grid was sharded over;
-        seconds: wall time of the evaluation (with compilation).
+        seconds: wall time of the evaluation (with compilation); route: ``"planar"`` or
+        ``"generic"`` (module docstring).
     """
 
     pressure: np.ndarray
@@ -153,10 +208,12 @@ class SweepResult(eqx.Module):
     settings: SweepSettings = eqx.field(static=True)
     devices: int = eqx.field(static=True)
     seconds: float = eqx.field(static=True)
+    route: str = eqx.field(static=True, default="planar")
 
     @property
     def failed(self) -> np.ndarray:
-        """bool ``S``: some quantity of the point failed (not-applicable does not count)."""
+        """bool ``S``: some quantity of the point failed (not applicable, i.e.
+        ``STATUS_NO_REGIME`` or ``STATUS_UNREACHABLE``, does not count)."""
         bad = (STATUS_SOLVER_FAILED, STATUS_MOMENT_MISSED)
         return (np.isin(self.wrinkling_status, bad) | np.isin(self.collapse_status, bad)
                 | np.isin(self.deflection_status, bad))
@@ -221,8 +278,52 @@ def _solution_template(rig: CantileverRig):
     return jax.eval_shape(lambda p: jt.equilibrium(structure, p, solver=rig.solver), params)
 
 
-def _point(model: TubeModel, settings: SweepSettings, pressure, radius, length, tip_load):
-    """All quantities of one specimen (scalars in; traced under ``vmap``)."""
+def _planar_point(law: jt.AbstractMomentLaw, settings: SweepSettings, pressure, radius,
+                  length, tip_load):
+    """All quantities of one specimen by the planar route (scalars in; traced under
+    ``vmap``): three solves of :mod:`fitting._planar_cantilever`."""
+    stiffness = law.initial_stiffness(pressure, radius)
+    kappa_w, kappa_c = regime_boundaries(law, pressure, radius)
+    moment_w = law.moment(kappa_w, pressure, radius)
+    moment_c = law.moment(kappa_c, pressure, radius)
+    w_defined = jnp.isfinite(moment_w)
+    c_defined = jnp.isfinite(moment_c) & w_defined
+    n, tolerance = settings.segments, settings.planar_tolerance
+
+    def load_at(curvature, defined, steps):
+        # An undefined regime still runs (lockstep) on a harmless curvature; its status
+        # says not applicable and its value is dropped.
+        safe = jnp.where(defined, curvature, 1e-6 / length)
+        solved = load_at_root_curvature(law, pressure, radius, length, safe, n, steps,
+                                        tolerance)
+        status = jnp.select(
+            [~defined, ~solved.reachable, solved.result != 0,
+             ~(solved.root_mismatch <= settings.moment_tolerance)],
+            [STATUS_NO_REGIME, STATUS_UNREACHABLE, STATUS_SOLVER_FAILED,
+             STATUS_MOMENT_MISSED], STATUS_OK)
+        return (jnp.where(status == STATUS_OK, solved.load, jnp.nan), status,
+                jnp.where(defined, solved.result, 0),
+                jnp.where(defined, solved.root_mismatch, jnp.nan),
+                jnp.where(defined, solved.steps, 0))
+
+    f_w, s_w, r_w, m_w, i_w = load_at(kappa_w, w_defined, settings.planar_wrinkling_steps)
+    f_c, s_c, r_c, m_c, i_c = load_at(kappa_c, c_defined, settings.planar_collapse_steps)
+    tip = deflection_at_load(law, pressure, radius, length, tip_load, n,
+                             settings.planar_deflection_steps, tolerance)
+    s_t = jnp.where(tip.result == 0, STATUS_OK, STATUS_SOLVER_FAILED)
+    return dict(initial_stiffness=stiffness, wrinkling_moment=moment_w,
+                collapse_moment=moment_c, wrinkling_load=f_w, collapse_load=f_c,
+                tip_deflection=jnp.where(s_t == STATUS_OK, tip.tip_deflection, jnp.nan),
+                wrinkling_status=s_w, collapse_status=s_c, deflection_status=s_t,
+                wrinkling_solver_result=r_w, collapse_solver_result=r_c,
+                deflection_solver_result=tip.result, wrinkling_mismatch=m_w,
+                collapse_mismatch=m_c, iterations=i_w + i_c + tip.steps)
+
+
+def _generic_point(model: TubeModel, settings: SweepSettings, pressure, radius, length,
+                   tip_load):
+    """All quantities of one specimen by the generic route (scalars in; traced under
+    ``vmap``): one ``lax.scan`` over the equilibrium solves of the module docstring."""
     rig = CantileverRig(segments=settings.segments, solver=settings.solver)
     structure, _ = rig.template()
     tip = structure.node_id("tube:end")
@@ -314,11 +415,15 @@ def _point(model: TubeModel, settings: SweepSettings, pressure, radius, length, 
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled_chunk(settings: SweepSettings, devices: tuple):
-    """One jitted ``vmap`` over a chunk of points, sharded over ``devices`` along the points."""
+def _compiled_chunk(settings: SweepSettings, devices: tuple, route: str = "planar"):
+    """One jitted ``vmap`` over a chunk of points, sharded over ``devices`` along the points.
+
+    Its first argument is the law (planar route) or the :class:`TubeModel` (generic)."""
+    point = {"planar": _planar_point, "generic": _generic_point}[route]
+
     def chunk(model, pressure, radius, length, tip_load):
-        return jax.vmap(functools.partial(_point, model, settings))(pressure, radius, length,
-                                                                    tip_load)
+        return jax.vmap(functools.partial(point, model, settings))(pressure, radius, length,
+                                                                   tip_load)
 
     if len(devices) == 1:
         return jax.jit(chunk), None
@@ -352,7 +457,10 @@ def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_l
 
     Arguments (any mutually broadcastable shapes; ``np.meshgrid`` makes a grid):
         law: a bending law (:class:`jaxtube.AbstractMomentLaw`, e.g. from
-            :func:`fitting.load_law`) or a :class:`fitting.TubeModel` with effects.
+            :func:`fitting.load_law`) or a :class:`fitting.TubeModel`; a law, or a model
+            without effects, takes the planar route, a model with effects the generic one
+            (module docstring; its torsion law plays no part: the cantilever does not
+            twist).
         pressure: overpressure [Pa] (> 0); radius [m] (> 0); length [m] (> 0);
         tip_load: the dead tip load of the tip deflection [N] (>= 0).
         settings: :class:`SweepSettings`; devices: devices to shard over (default: all of
@@ -381,7 +489,9 @@ def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_l
     padded = -(-count // size) * size
     flat = [np.concatenate([a.reshape(-1), np.repeat(a.reshape(-1)[-1:], padded - count)])
             for a in arrays]
-    compiled, sharding = _compiled_chunk(settings, devices)
+    route = "generic" if model.effects else "planar"
+    compiled, sharding = _compiled_chunk(settings, devices, route)
+    argument = model if route == "generic" else model.bending_law
     started = time.perf_counter()
     pieces = []
     chunks = range(0, padded, size)
@@ -392,11 +502,12 @@ def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_l
                       unit="chunk")
     for start in chunks:
         inputs = [_to_devices(a[start:start + size], sharding) for a in flat]
-        out = compiled(model, *inputs)
+        out = compiled(argument, *inputs)
         pieces.append({key: _to_host(value) for key, value in out.items()})
     seconds = time.perf_counter() - started
     fields = {key: np.concatenate([p[key] for p in pieces])[:count].reshape(shape)
               for key in pieces[0]}
     return SweepResult(pressure=arrays[0].copy(), radius=arrays[1].copy(),
                        length=arrays[2].copy(), tip_load=arrays[3].copy(), **fields,
-                       settings=settings, devices=len(devices), seconds=seconds)
+                       settings=settings, devices=len(devices), seconds=seconds,
+                       route=route)
