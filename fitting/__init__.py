@@ -28,7 +28,6 @@ from ._diagnose import (
     default_candidates,
     diagnose,
 )
-from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
 from ._effects import (
     BUILT_IN_EFFECTS,
     MODEL_EXTENSIONS,
@@ -40,6 +39,7 @@ from ._effects import (
     SelfWeight,
     Shear,
 )
+from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
 from ._result import FitResult, ParameterEstimate, load_law
 from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
