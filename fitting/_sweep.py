@@ -63,7 +63,11 @@ tip's horizontal displacement ``u``.
   the planar route (``experiments/bench_sweep.py``), which also found a known defect of
   this iteration, not investigated: at some specimens it returns its starting load
   ``M_w / L`` as the wrinkling load with a reported mismatch of about 1e-15, while an
-  independent solve at that load has a root moment up to 7e-4 short of ``M_w``.
+  independent solve at that load has a root moment up to 7e-4 short of ``M_w``. The cause
+  is in the solver's stopping rule, not in batching: the first wrinkling solve's linear
+  step puts the root joint exactly on the tension-field law's onset, where the rule's
+  ``|H z|`` scale explodes (by elimination), so the solve stops after one step
+  (``tests/test_known_defects.py``, a strict xfail).
 
 **Failures are per point and never hidden.** Each quantity has a status code
 (:data:`STATUS_MESSAGES`); a quantity that is not available is NaN in the arrays and blank
