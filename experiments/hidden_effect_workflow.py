@@ -70,38 +70,18 @@ def main() -> None:
         ax.set_ylim(-limit, limit)
     axes[0, 0].legend(fontsize=7, ncol=2)
 
-    ax = axes[1, 0]
     rows = diagnosis.steps[0].candidates if diagnosis.steps else diagnosis.final_candidates
-    drops = [max(-r.delta_bic, 0.1) if np.isfinite(r.delta_bic) else 0.1 for r in rows]
-    ax.barh(range(len(rows))[::-1], drops,
-            color=["C2" if r.significant else "0.6" for r in rows])
-    ax.set_yticks(range(len(rows))[::-1], [r.effect for r in rows], fontsize=8)
-    ax.axvline(diagnosis.options.bic_threshold, color="k", ls="--", lw=0.8,
-               label=f"threshold {diagnosis.options.bic_threshold:g}")
-    ax.set_xscale("log")
-    ax.set_xlabel("BIC drop of the refit with the candidate freed (green: significant)")
-    ax.set_title("step 1: which effect is missing?", fontsize=10)
-    ax.legend(fontsize=8)
-
-    ax = axes[1, 1]
-    names = [c.name for c in data]
-    x = np.arange(len(names))
-    before = [row["rmse_N"] for row in diagnosis.baseline.curve_errors()]
-    after = [row["rmse_N"] for row in final.curve_errors()]
-    ax.bar(x - 0.2, before, 0.4, label=f"before (RMSE {diagnosis.baseline.rmse:.3g} N)")
-    ax.bar(x + 0.2, after, 0.4, label=f"after (RMSE {final.rmse:.3g} N)")
-    ax.axhline(diagnosis.noise, color="k", ls="--", lw=1,
-               label=f"noise {diagnosis.noise:.3g} N")
-    ax.set_xticks(x, names, fontsize=7, rotation=15)
-    ax.set_ylabel("RMSE [N]")
+    fitting.draw_ranking(axes[1, 0], rows, diagnosis.options.bic_threshold,
+                         "step 1: which effect is missing?")
+    models = [("before", diagnosis.baseline), ("after", final)]
     found = ""
     if HIDDEN[0] in diagnosis.verdict:
         value = diagnosis.to_json()["final"]["effects"].get(
             f"{HIDDEN[0]}.compliance")
         if value is not None:
             found = f"; compliance found {value:.3g}, hidden {HIDDEN[1]:.3g} rad/(N m)"
-    ax.set_title("error per curve" + found, fontsize=10)
-    ax.legend(fontsize=8)
+    fitting.draw_rmse_per_curve(axes[1, 1], models, diagnosis.noise,
+                                "error per curve" + found)
     figure.suptitle("hidden-effect workflow on jaxtube/data/demo_hidden_effect.csv (hidden: "
                     f"clamp compliance); verdict: {added}"
                     + (" - quick mode" if args.quick else ""), fontsize=11)

@@ -39,7 +39,14 @@ from ._effects import (
     SelfWeight,
     Shear,
 )
-from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
+from ._figures import (
+    before_after_figure,
+    draw_ranking,
+    draw_rmse_per_curve,
+    fit_figure,
+    ranking_figure,
+    where_it_fails_figure,
+)
 from ._result import FitResult, ParameterEstimate, load_law
 from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
@@ -61,4 +68,5 @@ __all__ = [
 
 from ._sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundaries, sweep
 
+__all__ += ["draw_ranking", "draw_rmse_per_curve"]
 __all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]

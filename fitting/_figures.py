@@ -152,10 +152,28 @@ def _extent_bin(extent: np.ndarray, low: float) -> np.ndarray:
     return (extent >= EXTENT_EDGES[i]) & (extent < EXTENT_EDGES[i + 1])
 
 
+def draw_ranking(ax, rows, threshold: float, title: str) -> None:
+    """On ``ax``: the BIC drop of every candidate's refit (``rows``: ranked
+    :class:`fitting.CandidateRanking`, best first; log scale), significant ones green, the
+    ``threshold`` dashed, and the score statistic beside each bar."""
+    labels = [row.effect for row in rows][::-1]
+    drops = [max(-row.delta_bic, 0.1) if math.isfinite(row.delta_bic) else 0.1
+             for row in rows][::-1]
+    colours = ["C2" if row.significant else "0.6" for row in rows][::-1]
+    ax.barh(range(len(rows)), drops, color=colours)
+    for k, row in enumerate(rows[::-1]):
+        ax.text(drops[k] * 1.1, k, f"S = {row.score_statistic:.3g}", va="center", fontsize=7)
+    ax.axvline(threshold, color="k", ls="--", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_yticks(range(len(rows)), labels, fontsize=8)
+    ax.set_xlabel("BIC drop of the refit (green: significant)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, axis="x")
+
+
 def ranking_figure(diagnosis) -> Figure:
-    """One panel per ranking (each addition, then the final one): the BIC drop of every
-    candidate's refit (log scale), significant ones filled, the threshold dashed, and the
-    score statistic written beside each bar."""
+    """One panel per ranking (each addition, then the final one), drawn by
+    :func:`draw_ranking`."""
     rankings = [(f"step {i + 1}: added {s.added}", s.candidates)
                 for i, s in enumerate(diagnosis.steps)]
     if diagnosis.final_candidates:
@@ -165,23 +183,27 @@ def ranking_figure(diagnosis) -> Figure:
     figure = Figure(figsize=(5.2 * count, 3.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, count))
     for ax, (title, rows) in zip(axes, rankings):
-        labels = [row.effect for row in rows][::-1]
-        drops = [max(-row.delta_bic, 0.1) if math.isfinite(row.delta_bic) else 0.1
-                 for row in rows][::-1]
-        colours = ["C2" if row.significant else "0.6" for row in rows][::-1]
-        ax.barh(range(len(rows)), drops, color=colours)
-        for k, row in enumerate(rows[::-1]):
-            ax.text(drops[k] * 1.1, k, f"S = {row.score_statistic:.3g}", va="center",
-                    fontsize=7)
-        ax.axvline(diagnosis.options.bic_threshold, color="k", ls="--", lw=0.8)
-        ax.set_xscale("log")
-        ax.set_yticks(range(len(rows)), labels, fontsize=8)
-        ax.set_xlabel("BIC drop of the refit (green: significant)")
-        ax.set_title(title, fontsize=10)
-        ax.grid(alpha=0.3, axis="x")
+        draw_ranking(ax, rows, diagnosis.options.bic_threshold, title)
     verdict = ", ".join(diagnosis.verdict) or "nothing missing"
     figure.suptitle(f"candidates ranked; verdict: {verdict}", fontsize=10)
     return figure
+
+
+def draw_rmse_per_curve(ax, models, noise: float, title: str) -> None:
+    """On ``ax``: grouped bars of every curve's RMSE [N] for each ``(label, FitResult)`` of
+    ``models`` (fits of the same data), against the ``noise`` [N] (dashed)."""
+    names = [curve.name for curve in models[0][1].problem.data]
+    width = 0.8 / len(models)
+    for k, (label, result) in enumerate(models):
+        rmse = [row["rmse_N"] for row in result.curve_errors()]
+        ax.bar(np.arange(len(names)) + (k - (len(models) - 1) / 2) * width, rmse, width,
+               label=f"{label} (RMSE {result.rmse:.3g} N)")
+    ax.axhline(noise, color="k", ls="--", lw=1, label=f"noise {noise:.3g} N")
+    ax.set_xticks(range(len(names)), names, fontsize=8, rotation=15)
+    ax.set_ylabel("RMSE [N]")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
 
 
 def before_after_figure(diagnosis) -> Figure:
@@ -190,16 +212,6 @@ def before_after_figure(diagnosis) -> Figure:
         ("+ " + s.added, s.fit) for s in diagnosis.steps]
     names = [curve.name for curve in diagnosis.baseline.problem.data]
     figure = Figure(figsize=(max(6.0, 1.1 * len(names) + 2), 4.2), layout="constrained")
-    ax = figure.add_subplot()
-    width = 0.8 / len(models)
-    for k, (label, result) in enumerate(models):
-        rmse = [row["rmse_N"] for row in result.curve_errors()]
-        ax.bar(np.arange(len(names)) + (k - (len(models) - 1) / 2) * width, rmse, width,
-               label=f"{label} (RMSE {result.rmse:.3g} N)")
-    ax.axhline(diagnosis.noise, color="k", ls="--", lw=1, label=f"noise {diagnosis.noise:.3g} N")
-    ax.set_xticks(range(len(names)), names, fontsize=8, rotation=15)
-    ax.set_ylabel("RMSE [N]")
-    ax.set_title("error per curve, before and after each addition", fontsize=10)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3, axis="y")
+    draw_rmse_per_curve(figure.add_subplot(), models, diagnosis.noise,
+                        "error per curve, before and after each addition")
     return figure
