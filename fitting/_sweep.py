@@ -282,16 +282,24 @@ def _solution_template(rig: CantileverRig):
     return jax.eval_shape(lambda p: jt.equilibrium(structure, p, solver=rig.solver), params)
 
 
-def _planar_point(law: jt.AbstractMomentLaw, settings: SweepSettings, pressure, radius,
-                  length, tip_load):
-    """All quantities of one specimen by the planar route (scalars in; traced under
-    ``vmap``): three solves of :mod:`fitting._planar_cantilever`."""
-    stiffness = law.initial_stiffness(pressure, radius)
+def _thresholds(law: jt.AbstractMomentLaw, pressure, radius):
+    """``EI0`` [N m^2], the wrinkling and collapse curvatures [1/m] and moments [N m] of the
+    law at one specimen, and whether each regime exists (the collapse only after a
+    wrinkling); shared by both routes."""
     kappa_w, kappa_c = regime_boundaries(law, pressure, radius)
     moment_w = law.moment(kappa_w, pressure, radius)
     moment_c = law.moment(kappa_c, pressure, radius)
     w_defined = jnp.isfinite(moment_w)
-    c_defined = jnp.isfinite(moment_c) & w_defined
+    return (law.initial_stiffness(pressure, radius), kappa_w, kappa_c, moment_w, moment_c,
+            w_defined, jnp.isfinite(moment_c) & w_defined)
+
+
+def _planar_point(law: jt.AbstractMomentLaw, settings: SweepSettings, pressure, radius,
+                  length, tip_load):
+    """All quantities of one specimen by the planar route (scalars in; traced under
+    ``vmap``): three solves of :mod:`fitting._planar_cantilever`."""
+    stiffness, kappa_w, kappa_c, moment_w, moment_c, w_defined, c_defined = _thresholds(
+        law, pressure, radius)
     n, tolerance = settings.segments, settings.planar_tolerance
 
     def load_at(curvature, defined, steps):
@@ -334,11 +342,8 @@ def _generic_point(model: TubeModel, settings: SweepSettings, pressure, radius, 
     params = rig.specimen_parameters(model, pressure, radius, length)
     params = eqx.tree_at(lambda p: p.node_force, params,
                          params.node_force.at[tip].set(jnp.asarray(DOWN)))  # 1 N down
-    law = model.bending_law
-    stiffness = law.initial_stiffness(pressure, radius)
-    kappa_w, kappa_c = regime_boundaries(law, pressure, radius)
-    moment_w = law.moment(kappa_w, pressure, radius)
-    moment_c = law.moment(kappa_c, pressure, radius)
+    stiffness, kappa_w, kappa_c, moment_w, moment_c, w_defined, c_defined = _thresholds(
+        model.bending_law, pressure, radius)
 
     # The unloaded shape as a Solution to start from (equilibrium reads state, multipliers).
     start = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), _solution_template(rig))
@@ -350,8 +355,6 @@ def _generic_point(model: TubeModel, settings: SweepSettings, pressure, radius, 
     first = np.concatenate([[True] + [False] * (n_t - 1), [True] + [False] * (n_w - 1),
                             [True] + [False] * (n_c - 1)])
     fraction = np.concatenate([np.arange(1, n_t + 1) / n_t, np.zeros(n_w + n_c)])
-    w_defined = jnp.isfinite(moment_w)
-    c_defined = jnp.isfinite(moment_c) & w_defined
 
     def solve(load, initial):
         sol = jt.equilibrium(structure, jt.scale_loads(params, load), initial=initial,
