@@ -55,6 +55,7 @@ from ._model import equilibrium as equilibrium
 from ._model import scale_loads as scale_loads
 from ._model import solve_path as solve_path
 from ._model import total_energy as total_energy
+from ._results import RESULTS as RESULTS
 from ._rotation import rotation_matrix as rotation_matrix
 from ._rotation import rotation_vector as rotation_vector
 from ._solver import RESULT_MESSAGES as RESULT_MESSAGES

@@ -40,12 +40,9 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
-RESULT_MESSAGES = {
-    0: "converged",
-    1: "did not converge within the maximum number of Newton steps",
-    2: "line search failed (no decrease of the merit function)",
-    3: "non-finite energy, gradient or Hessian (NaN or inf)",
-}
+from ._results import RESULTS, messages
+
+RESULT_MESSAGES = messages(RESULTS)
 
 
 class NewtonKKT(eqx.Module):
