@@ -1,4 +1,4 @@
-"""Tests of the moment-curvature laws (jaxtube/_laws.py)."""
+"""Tests of the moment-curvature laws (jaxtube/_laws/)."""
 
 import math
 

@@ -21,7 +21,7 @@ Why segment rotations rather than joint rotations as unknowns: node positions ar
 of independent per-segment terms ``Q_s0 exp(phi_s) e_s``, so every load and every support
 or control constraint is separable by segment, and each spring couples only its two
 segments. The Hessian of the Lagrangian is block-sparse along the joints and is assembled
-from small element Hessians (:func:`jaxtube._model` ``lagrangian_hessian``) instead of
+from small element Hessians (:func:`jaxtube._mechanics.hessian.lagrangian_hessian`) instead of
 pushing every unknown through the whole chain. The model (its energy and its equilibria) is
 the same; only the coordinates differ.
 

@@ -30,6 +30,7 @@ from .._structure.structure import (
     StructureParameters,
     Support,
 )
+from .._units import unit_factor
 from .check import SpecError, check_keys, format_point, key_path
 from .context import SpecContext
 from .kite import read_kite
@@ -206,7 +207,7 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
     node_id = structure.node_id(name(path_spec["node"]))
     direction = path_spec["direction"] / np.linalg.norm(path_spec["direction"])
     if path_spec["control"] == "displacement":
-        values = fractions * path_spec["maximum"] * 1e-3
+        values = fractions * path_spec["maximum"] * unit_factor("length", "mm")
         path = DisplacementControl(node_id, direction, values)
     else:
         values = fractions * path_spec["maximum"]
