@@ -141,6 +141,13 @@ def read_table(p, value, where, *, array=False):
     return None
 
 
+def array_tables(p, value, where) -> list[tuple[str, dict]]:
+    """``(key path, table)`` for each table of the array of tables ``[[where]]``; none (and
+    a problem) if ``value`` is not one."""
+    tables = read_table(p, value, where, array=True)
+    return [(key_path(where, index), table) for index, table in enumerate(tables or [])]
+
+
 def read_pressure(p, table, where, prefix):
     """Exactly one of ``{prefix}_bar`` / ``_kPa`` / ``_Pa``, positive, in Pa."""
     keys = [f"{prefix}_{unit}" for unit in UNITS["pressure"]]

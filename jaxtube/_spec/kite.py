@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from .._structure.kite import LEADING_EDGE, Strut, TubeKite, double_taper
 from .check import (
+    array_tables,
     check_keys,
     describe,
     key_path,
@@ -190,10 +191,9 @@ def read_kite(p, value, ctx) -> None:
     le = (_leading_edge(p, table["leading_edge"], "kite.leading_edge")
           if "leading_edge" in table else None)
     struts = []
-    tables = read_table(p, table["strut"], "kite.strut", array=True) if "strut" in table else []
-    for index, strut_table in enumerate(tables or []):
-        struts.append(_strut(p, strut_table, key_path("kite.strut", index),
-                             None if le is None else le["pressure"]))
+    strut_tables = array_tables(p, table["strut"], "kite.strut") if "strut" in table else []
+    for where, strut_table in strut_tables:
+        struts.append(_strut(p, strut_table, where, None if le is None else le["pressure"]))
     names = [LEADING_EDGE] + [f"strut_{k + 1}" for k in range(len(struts))]
     for name in names:
         if name in ctx.tube_nodes:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .check import (
+    array_tables,
     check_keys,
     describe,
     key_path,
@@ -21,12 +22,8 @@ DEFAULT_STEPS = 20
 
 
 def read_supports(p, value, ctx: SpecContext):
-    tables = read_table(p, value, "support", array=True)
-    if tables is None:
-        return
     seen = {}
-    for index, table in enumerate(tables):
-        where = key_path("support", index)
+    for where, table in array_tables(p, value, "support"):
         check_keys(p, table, where, ("node", "kind"), {"node": "a node name 'tube:index'"})
         ref = read_node(p, table["node"], key_path(where, "node"), ctx) if "node" in table else None
         kind = read_string(p, table, "kind", where, default="clamped",
@@ -42,11 +39,7 @@ def read_supports(p, value, ctx: SpecContext):
 
 
 def read_connections(p, value, ctx: SpecContext):
-    tables = read_table(p, value, "connection", array=True)
-    if tables is None:
-        return
-    for index, table in enumerate(tables):
-        where = key_path("connection", index)
+    for where, table in array_tables(p, value, "connection"):
         check_keys(p, table, where, ("nodes", "kind"),
                    {"nodes": "two node names ['tube:index', 'tube:index']"})
         kind = read_string(p, table, "kind", where, default="rigid", choices=("rigid", "pinned"))
@@ -63,11 +56,7 @@ def read_connections(p, value, ctx: SpecContext):
 
 
 def read_loads(p, value, ctx: SpecContext):
-    tables = read_table(p, value, "load", array=True)
-    if tables is None:
-        return
-    for index, table in enumerate(tables):
-        where = key_path("load", index)
+    for where, table in array_tables(p, value, "load"):
         check_keys(p, table, where, ("node", "force_N", "torque_Nm"),
                    {"node": "a node name 'tube:index'"})
         ref = read_node(p, table["node"], key_path(where, "node"), ctx) if "node" in table else None
