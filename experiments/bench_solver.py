@@ -52,8 +52,9 @@ import scipy.optimize
 from jax.flatten_util import ravel_pytree
 
 # Only for the what-if in the profile (3x3 products swapped for jnp.matmul, then restored).
-import jaxtube._mechanics as _mechanics
-import jaxtube._model as _model
+import jaxtube._mechanics.energy as _energy
+import jaxtube._mechanics.hessian as _hessian
+import jaxtube._mechanics.kinematics as _kinematics
 import jaxtube._rotation as _rotation
 
 # --------------------------------------------------------------------------------------------
@@ -128,7 +129,7 @@ class Report:
 def source_fingerprint() -> str:
     """Short hash of jaxtube's sources: the package changes fast and has no commits yet."""
     digest = hashlib.sha256()
-    for path in sorted(Path(jt.__file__).parent.glob("*.py")):
+    for path in sorted(Path(jt.__file__).parent.rglob("*.py")):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:12]
 
@@ -547,9 +548,9 @@ def main(argv=None) -> int:
         # The same Lagrangian with one forward kinematics shared by energy and constraints.
         state = unravel(z)
         config = jt.configuration(structure, g, state)
-        joints = _mechanics.spring_joints(structure, g, state)
-        e = (_mechanics.strain_energy(joints, p)
-             + _mechanics.load_potential(structure, g, config, p, state))
+        joints = _kinematics.spring_joints(structure, g, state)
+        e = (_energy.strain_energy(joints, p)
+             + _energy.load_potential(structure, g, config, p, state))
         moved = config.node_position[tip] - p.node_position[tip]
         c = jnp.concatenate([state["root_position"] - p.node_position[root],
                              (jnp.dot(moved, control.direction) - 0.2)[None]])
@@ -608,7 +609,7 @@ def main(argv=None) -> int:
 
     def assembled(z, lam, p, g):
         ctrl = (tip, control.direction, jnp.asarray(0.2))
-        return _model.lagrangian_hessian(structure, g, p, ctrl, unravel(z), lam)
+        return _hessian.lagrangian_hessian(structure, g, p, ctrl, unravel(z), lam)
 
     assembled_value = add_piece("assembled", assembled, lagrange_point)
     assembled_error = float(jnp.max(jnp.abs(assembled_value - hessian_value))
@@ -624,13 +625,13 @@ def main(argv=None) -> int:
     # What-if: the same energy with the 3x3 products as jnp.matmul instead of the
     # broadcast-multiply-reduce of jaxtube._rotation.matmul3 / matvec3. Patched only while
     # tracing and compiling; the originals are restored right after.
-    patched = [(m, n) for m in (_mechanics, _rotation) for n in ("matmul3", "matvec3")
+    patched = [(m, n) for m in (_kinematics, _rotation) for n in ("matmul3", "matvec3")
                if hasattr(m, n)]
     matmul_note = "    what-if skipped: jaxtube no longer has matmul3/matvec3 where expected"
     if len(patched) == 4:
         saved = {(m, n): getattr(m, n) for m, n in patched}
         try:
-            for module in (_mechanics, _rotation):
+            for module in (_kinematics, _rotation):
                 module.matmul3 = jnp.matmul
                 module.matvec3 = lambda a, v: jnp.matmul(a, v[..., None])[..., 0]
             add_piece("matmul gradient", jax.grad(energy), point)

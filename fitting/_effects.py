@@ -1,4 +1,4 @@
-"""Physical effects that a pure bending-spring model lacks (PHYSICS.md section 5).
+"""Physical effects that a pure bending-spring model lacks (docs/physics.md, section 5).
 
 An effect is a small immutable object (an ``equinox.Module``) whose fields are its
 parameters. Each parameter has a *null value*, where the effect vanishes and the model is

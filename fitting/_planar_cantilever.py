@@ -7,8 +7,8 @@ segments of length ``h = L / n`` along +x, spherical spring joints ``k = 1..n`` 
 ``l_1 = h / 2``; the internal joints have ``l_k = h`` (``reference_geometry``: half the
 segment length against the ground, the mean of the two segment lengths between segments).
 A joint of rotation ``theta_k`` has curvature ``kappa_k = theta_k / l_k`` and energy
-``l_k W(kappa_k^2)``, so ``dE/dtheta_k = M(kappa_k)``, the law's moment (PHYSICS.md
-section 1).
+``l_k W(kappa_k^2)``, so ``dE/dtheta_k = M(kappa_k)``, the law's moment (docs/physics.md,
+section 1.2).
 
 A dead vertical tip load ``F`` (along -z) keeps the chain in the x-z plane. With the
 absolute segment angles ``phi_j = theta_1 + ... + theta_j`` (rotation about +y, so a

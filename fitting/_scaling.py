@@ -18,7 +18,7 @@ Both keep the law monotone for every parameter value (the increments are positiv
 
 The first guess (no hand tuning): the initial slope of each measured curve gives the
 bending stiffness ``EI = k0 L^3 / 3`` and the wall stiffness ``E t = EI / (pi r^3)``
-(``EI = E t pi r^3``, PHYSICS.md section 2); the pivots then follow the tension-field tube
+(``EI = E t pi r^3``, docs/physics.md, section 2.1); the pivots then follow the tension-field tube
 with that ``E t``, whose wrinkling and collapse moments are Comer & Levy's
 ``pi p r^3 / 2`` and ``pi p r^3`` (:meth:`jaxtube.SplineLaw.from_tension_field`).
 """

@@ -11,7 +11,7 @@ A law is a monotone, point-symmetric pair ``moment(curvature)`` / ``curvature(mo
 (:class:`BendingLaw`). Provided:
 
 - :func:`linear_law`: ``M = EI kappa``.
-- :func:`tension_field_law` (no-compression membrane tube, PHYSICS.md section 2, after
+- :func:`tension_field_law` (no-compression membrane tube, docs/physics.md, section 2.3, after
   Comer & Levy 1963): ``EI = pi Et r^3`` up to ``kappa_w = p / (2 Et)``; beyond, with ``a``
   the half-angle of the taut arc (pi down to 0)::
 
@@ -42,7 +42,7 @@ Fichter shear strain ``gamma``::
 ``V(s)`` is the downward resultant of all loads beyond ``s`` (inextensible, so the weight
 beyond ``s`` is ``w g (L - s)`` whatever the shape) and ``M(s)`` their moment about the
 centreline point at ``s`` (positive when it bends the tube downward). Shear (Fichter 1966;
-Le van & Wielgosz 2005, PHYSICS.md section 2) uses the resultant's component *perpendicular
+Le van & Wielgosz 2005, docs/physics.md, section 2.4) uses the resultant's component *perpendicular
 to the deformed section*, ``V_perp = V cos(theta)`` (the component ``V sin(theta)`` along
 the section normal is axial force and does not shear)::
 
@@ -75,9 +75,9 @@ The tip deflection is measured from the *unloaded* shape (``P = 0``, which sags 
 self-weight), as a bench test zeroes its gauge.
 
 Closed form (:func:`elastica_tip`): the elliptic-integral elastica of a cantilever with a
-dead tip load (Mattiasson 1981; PHYSICS.md section 4).
+dead tip load (Mattiasson 1981; docs/physics.md, section 4.1).
 
-Sources: PHYSICS.md sections 2 and 4; Comer & Levy, AIAA J. 1 (1963) (wrinkling and
+Sources: docs/physics.md, sections 2 and 4; Comer & Levy, AIAA J. 1 (1963) (wrinkling and
 collapse moments); Fichter, NASA technical note (1966), and Le van & Wielgosz,
 Thin-Walled Struct. 43 (2005) (pressure term in the shear stiffness); Mattiasson, Int. J.
 Numer. Meth. Eng. 17 (1981) (elliptic-integral elastica); Reissner, ZAMP 23 (1972) (planar
@@ -172,7 +172,7 @@ def _safeguarded_newton(fun, target: float, lo: float, hi: float, x0: float) -> 
 
 
 # ---------------------------------------------------------------------------------------
-# Tension-field (no-compression) tube law, PHYSICS.md section 2
+# Tension-field (no-compression) tube law, docs/physics.md, section 2.3
 
 
 def _taut_arc_functions(a: float) -> tuple[float, float, float]:
@@ -270,8 +270,8 @@ def tension_field_moment(curvature, pressure: float, radius: float, wall_modulus
 
     Returns:
         Moment of the same shape (a float for scalar input) [N m]: ``pi Et r^3 kappa`` up
-        to ``kappa_w = p/(2 Et)``, then the parametric wrinkled branch of PHYSICS.md
-        section 2 (``M -> pi p r^3`` as ``kappa -> inf``).
+        to ``kappa_w = p/(2 Et)``, then the parametric wrinkled branch of docs/physics.md,
+        section 2.3 (``M -> pi p r^3`` as ``kappa -> inf``).
     """
     _check_tube(pressure, radius, wall_modulus)
     return _elementwise(
@@ -337,7 +337,7 @@ def linear_law(bending_stiffness: float) -> BendingLaw:
 
 
 def tension_field_law(pressure: float, radius: float, wall_modulus: float) -> BendingLaw:
-    """Tension-field tube law (PHYSICS.md section 2) for p [Pa], r [m], E t [N/m]."""
+    """Tension-field tube law (docs/physics.md, section 2.3) for p [Pa], r [m], E t [N/m]."""
     _check_tube(pressure, radius, wall_modulus)
     parameters = (float(pressure), float(radius), float(wall_modulus))
 
@@ -406,8 +406,8 @@ def law_from_moment(
 def reinforced_law(law: BendingLaw, reinforcement_stiffness: float) -> BendingLaw:
     """``M(kappa) = M_law(kappa) + EI_r kappa``: a pressure-independent stiffness in parallel.
 
-    ``EI_r`` = ``reinforcement_stiffness`` [N m^2] (tape, seams, bladder; PHYSICS.md
-    section 5). The inverse is bracketed by ``0 <= kappa <= min(|M| / EI_r, kappa_law(|M|))``
+    ``EI_r`` = ``reinforcement_stiffness`` [N m^2] (tape, seams, bladder; docs/physics.md,
+    section 5.2). The inverse is bracketed by ``0 <= kappa <= min(|M| / EI_r, kappa_law(|M|))``
     and found by Brent's method.
     """
     if reinforcement_stiffness == 0.0:
@@ -437,13 +437,13 @@ def reinforced_law(law: BendingLaw, reinforcement_stiffness: float) -> BendingLa
 
 
 # ---------------------------------------------------------------------------------------
-# Closed-form elastica, PHYSICS.md section 4
+# Closed-form elastica, docs/physics.md, section 4.1
 
 
 def elastica_tip(alpha: float) -> tuple[float, float, float]:
     """Tip of the inextensible elastica cantilever under a dead vertical tip load.
 
-    Elliptic-integral solution (Mattiasson 1981; PHYSICS.md section 4), scipy parameter
+    Elliptic-integral solution (Mattiasson 1981; docs/physics.md, section 4.1), scipy parameter
     ``m = k^2 = (1 + sin theta0) / 2``, ``sin phi1 = 1 / (k sqrt 2)``::
 
         sqrt(alpha) = K(m) - F(phi1, m)                    fixes theta0
@@ -951,7 +951,7 @@ def fichter_shear_stiffness(
 
     Args:
         pressure: p [Pa]; radius: r [m]; shear_modulus: G t [N/m]; shear_factor: k
-            (about 0.5 for a thin tube; PHYSICS.md section 2).
+            (about 0.5 for a thin tube; docs/physics.md, section 2.4).
     """
     return pressure * math.pi * radius**2 + shear_factor * shear_modulus * 2.0 * math.pi * radius
 

@@ -56,8 +56,10 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from ._controls import DisplacementControl
+from ._equilibrium import Solution
 from ._mechanics import initial_state, reference_geometry, spring_joints
-from ._model import DisplacementControl, Solution, solve_path
+from ._path import solve_path
 from ._solver import RESULT_MESSAGES
 from ._spec import LoadedSpec, SpecError, load_spec
 

@@ -1,6 +1,6 @@
 """Physics against closed forms: elastica, small-deflection formulas, the 45-degree bend.
 
-References: PHYSICS.md section 4 (Mattiasson 1981 elastica table; Bathe & Bolourchi 1979,
+References: docs/physics.md, section 4 (Mattiasson 1981 elastica table; Bathe & Bolourchi 1979,
 Simo & Vu-Quoc 1986 45-degree bend; Euler-Bernoulli small-deflection formulas).
 """
 
@@ -169,7 +169,7 @@ def test_45_degree_bend():
 
 
 def test_fichter_shear_cantilever_small_and_large_deflection():
-    """Shear deformation (Fichter 1966; PHYSICS.md section 2): the small tip deflection is
+    """Shear deformation (Fichter 1966; docs/physics.md, section 2.4): the small tip deflection is
     ``P L^3 / (3 EI) + P L / S`` with ``S = p pi r^2 + k G A``; at large deflection the tip
     force matches the independent continuum solver (Reissner kinematics with shear)."""
     from fitting import continuum

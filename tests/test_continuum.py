@@ -36,7 +36,7 @@ from fitting.continuum import (
 
 DATA = Path(__file__).parent / "data" / "cantilever_shear.csv"
 
-# PHYSICS.md section 4 (Mattiasson 1981): alpha, tip angle [rad], v/L, u/L.
+# docs/physics.md, section 4.1 (Mattiasson 1981): alpha, tip angle [rad], v/L, u/L.
 ELASTICA_TABLE = [
     (1.0, 0.461352, 0.30172, 0.05643),
     (2.0, 0.781750, 0.49346, 0.16064),
@@ -53,7 +53,7 @@ COLLAPSE_MOMENT = math.pi * PRESSURE * RADIUS**3  # M_c [N m]
 
 
 def taut_arc_reference(a):
-    """Parametric wrinkled branch straight from PHYSICS.md section 2 (moderate a only)."""
+    """Parametric wrinkled branch straight from docs/physics.md, section 2.3 (moderate a only)."""
     f = np.sin(a) - a * np.cos(a)
     curvature = math.pi * PRESSURE / (2.0 * WALL_MODULUS * f)
     moment = 0.5 * math.pi * PRESSURE * RADIUS**3 * (a - np.sin(a) * np.cos(a)) / f

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from jaxtube import _kite_spec
 from jaxtube._plot import deformed_shape_figure
 from jaxtube._spec import SpecError, load_spec, parse_spec
+from jaxtube._spec import kite as _kite_spec
 
 EXAMPLES = Path(jt.__file__).parent / "examples"
 
@@ -202,7 +202,7 @@ def test_kite_figure_draws_supports_loads_and_regimes(tmp_path):
 def test_strut_is_a_rigid_attachment_with_half_tributary():
     """At a strut's root node the leading edge keeps its bending joint (tributary: one
     leading-edge segment) and the strut gets an attachment joint with its own law and half
-    of its first segment (PHYSICS.md section 1); every node of both tubes is a joint."""
+    of its first segment (docs/physics.md, section 1.2); every node of both tubes is a joint."""
     from jaxtube._mechanics import initial_state, reference_geometry, spring_joints
 
     kite = jt.TubeKite(segments=8, radius=0.05, pressure=2e4, bending_law=jt.LinearLaw(10.0),

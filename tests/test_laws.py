@@ -1,4 +1,4 @@
-"""Tests of the moment-curvature laws (jaxtube/_laws.py)."""
+"""Tests of the moment-curvature laws (jaxtube/_laws/)."""
 
 import math
 
@@ -538,7 +538,7 @@ def test_spline_gradients_with_respect_to_parameters():
 
 
 def _tension_field_parametric(angle):
-    """kappa(a), M(a), dM/dkappa(a) of PHYSICS.md section 2, in numpy."""
+    """kappa(a), M(a), dM/dkappa(a) of docs/physics.md, section 2.3, in numpy."""
     g = np.sin(angle) - angle * np.cos(angle)
     numerator = angle - np.sin(angle) * np.cos(angle)
     curvature = math.pi * WRINKLING_CURVATURE / g

@@ -198,7 +198,8 @@ def test_assembled_hessian_equals_autodiff_hessian(case):
     rotation, where the exponential and logarithm maps switch to their Taylor branches)."""
     from jax.flatten_util import ravel_pytree
 
-    from jaxtube._model import _objective, lagrangian_hessian
+    from jaxtube._mechanics import energy_and_constraints as _objective
+    from jaxtube._mechanics import lagrangian_hessian
 
     _, (structure, params), control = _hessian_cases()[case]
     geometry = reference_geometry(structure, params)

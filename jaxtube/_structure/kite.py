@@ -27,20 +27,17 @@ import math
 import equinox as eqx
 import numpy as np
 
-from ._laws import AbstractMomentLaw
-from ._structure import (
+from .._laws import AbstractMomentLaw
+from .build import build_structure
+from .structure import (
     STANDARD_GRAVITY,
     SUPPORT_KINDS,
     Connection,
     Structure,
     StructureParameters,
     Support,
-    Tube,
-    arc_tube,
-    build_structure,
-    polyline_tube,
-    straight_tube,
 )
+from .tube import Tube, arc_tube, polyline_tube, straight_tube
 
 LEADING_EDGE = "le"
 # Named nodes besides "tube:index": le:centre, le:left_tip, le:right_tip, strut_k:root.

@@ -1,6 +1,6 @@
 """The ``[kite]`` table of a TOML spec: a tube kite from :class:`~jaxtube.TubeKite`.
 
-Keys (reference; the spec format as a whole is documented in :mod:`jaxtube._spec`)::
+Keys (reference; the spec format as a whole is documented in docs/spec-format.md)::
 
     [kite]
     tip_support = "clamped"            # or "pinned": both wing tips
@@ -37,8 +37,22 @@ and every ``tube:index``.
 
 from __future__ import annotations
 
-from . import _spec as s
-from ._kite import LEADING_EDGE, Strut, TubeKite, double_taper
+from .._structure.kite import LEADING_EDGE, Strut, TubeKite, double_taper
+from .check import (
+    array_tables,
+    check_keys,
+    describe,
+    key_path,
+    read_number,
+    read_pressure,
+    read_string,
+    read_table,
+    read_vector,
+    read_vector_key,
+)
+from .context import read_node
+from .laws import read_law
+from .tubes import read_radius
 
 _GEOMETRY_KEYS = ("span_m", "arc_height_m", "points_m")
 _LE_KEYS = ("segments", "pressure_bar", "pressure_kPa", "pressure_Pa", "centre_radius_m",
@@ -54,18 +68,18 @@ def _taper_radius(p, table, where, inner: str, outer: str, make):
     ``make(inner, outer)``; exactly one form."""
     pair = [k for k in (inner, outer) if k in table]
     if "radius_m" in table and pair:
-        p.add(s._join(where, pair[0]), f"cannot be combined with radius_m (give either "
+        p.add(key_path(where, pair[0]), f"cannot be combined with radius_m (give either "
               f"radius_m or {inner} and {outer})")
         return None
     if "radius_m" in table:
-        return s._radius(p, table, where)
+        return read_radius(p, table, where)
     if len(pair) < 2:
         missing = inner if inner not in table else outer
-        p.add(s._join(where, missing), f"missing required key (expected {inner} and {outer} "
+        p.add(key_path(where, missing), f"missing required key (expected {inner} and {outer} "
               f"[m], or radius_m)")
         return None
-    a = s._number(p, table, inner, where, positive=True)
-    b = s._number(p, table, outer, where, positive=True)
+    a = read_number(p, table, inner, where, positive=True)
+    b = read_number(p, table, outer, where, positive=True)
     return None if a is None or b is None else make(float(a), float(b))
 
 
@@ -74,63 +88,63 @@ def _largest(radius):
 
 
 def _common(p, table, where):
-    mass = s._number(p, table, "mass_per_length_kg_per_m", where, default=0.0, minimum=0.0)
-    line_load = s._vector_key(p, table, "line_load_N_per_m", where, default=(0, 0, 0))
+    mass = read_number(p, table, "mass_per_length_kg_per_m", where, default=0.0, minimum=0.0)
+    line_load = read_vector_key(p, table, "line_load_N_per_m", where, default=(0, 0, 0))
     return mass, line_load
 
 
 def _laws(p, table, where, pressure, radius, required):
     if "bending_law" not in table:
         if required:
-            p.add(s._join(where, "bending_law"), "missing required table (expected a "
+            p.add(key_path(where, "bending_law"), "missing required table (expected a "
                   "[kite.leading_edge.bending_law] table, same kinds as [tube.bending_law])")
         bending = None
     else:
-        bending = s._read_law(p, table["bending_law"], s._join(where, "bending_law"),
-                              "bending", pressure, None if radius is None else _largest(radius))
-    torsion = (s._read_law(p, table["torsion_law"], s._join(where, "torsion_law"), "torsion",
-                           pressure, None if radius is None else _largest(radius))
+        bending = read_law(p, table["bending_law"], key_path(where, "bending_law"),
+                           "bending", pressure, None if radius is None else _largest(radius))
+    torsion = (read_law(p, table["torsion_law"], key_path(where, "torsion_law"), "torsion",
+                        pressure, None if radius is None else _largest(radius))
                if "torsion_law" in table else None)
     return bending, torsion
 
 
 def _leading_edge(p, value, where):
-    table = s._table(p, value, where)
+    table = read_table(p, value, where)
     if table is None:
         return None
-    count = len(p.lines)
-    s._check_keys(p, table, where, _LE_KEYS, {"segments": "an even positive integer"})
-    segments = s._number(p, table, "segments", where, positive=True, integer=True)
+    count = len(p)
+    check_keys(p, table, where, _LE_KEYS, {"segments": "an even positive integer"})
+    segments = read_number(p, table, "segments", where, positive=True, integer=True)
     if segments is not None and segments % 2:
-        p.add(s._join(where, "segments"), f"expected an even number of segments (so that "
+        p.add(key_path(where, "segments"), f"expected an even number of segments (so that "
               f"le:centre is a node), found {segments}")
-    pressure = s._pressure(p, table, where, "pressure")
+    pressure = read_pressure(p, table, where, "pressure")
     radius = _taper_radius(p, table, where, "centre_radius_m", "tip_radius_m", double_taper)
     mass, line_load = _common(p, table, where)
     geometry = {}
     if "points_m" in table:
         for key in ("span_m", "arc_height_m"):
             if key in table:
-                p.add(s._join(where, key), "cannot be combined with points_m (give span_m and "
+                p.add(key_path(where, key), "cannot be combined with points_m (give span_m and "
                       "arc_height_m for a circular arc, or points_m for a sampled centreline)")
         points = table["points_m"]
         if not isinstance(points, list) or len(points) < 2:
-            p.add(s._join(where, "points_m"), f"expected a list of two or more points "
-                  f"[[x, y, z], ...], found {s._found(points)}")
+            p.add(key_path(where, "points_m"), f"expected a list of two or more points "
+                  f"[[x, y, z], ...], found {describe(points)}")
         else:
-            rows = [s._vector(p, point, s._join(s._join(where, "points_m"), i))
+            rows = [read_vector(p, point, key_path(key_path(where, "points_m"), i))
                     for i, point in enumerate(points)]
             geometry = dict(centreline=tuple(map(tuple, rows))) if all(
                 r is not None for r in rows) else {}
     else:
         for key in ("span_m", "arc_height_m"):
             if key not in table:
-                p.add(s._join(where, key), "missing required key (expected span_m and "
+                p.add(key_path(where, key), "missing required key (expected span_m and "
                       "arc_height_m [m], positive, or points_m)")
-        geometry = dict(span=s._number(p, table, "span_m", where, positive=True),
-                        arc_height=s._number(p, table, "arc_height_m", where, positive=True))
+        geometry = dict(span=read_number(p, table, "span_m", where, positive=True),
+                        arc_height=read_number(p, table, "arc_height_m", where, positive=True))
     bending, torsion = _laws(p, table, where, pressure, radius, required=True)
-    if len(p.lines) > count:
+    if len(p) > count:
         return None
     return dict(segments=segments, radius=radius, pressure=pressure, bending_law=bending,
                 torsion_law=torsion, mass_per_length=float(mass),
@@ -138,25 +152,25 @@ def _leading_edge(p, value, where):
 
 
 def _strut(p, table, where, le_pressure):
-    count = len(p.lines)
-    s._check_keys(p, table, where, _STRUT_KEYS, {
+    count = len(p)
+    check_keys(p, table, where, _STRUT_KEYS, {
         "span_fraction": "a number in (0, 1)", "chord_m": "a positive length [m]",
         "segments": "a positive integer"})
-    fraction = s._number(p, table, "span_fraction", where)
+    fraction = read_number(p, table, "span_fraction", where)
     if fraction is not None and not 0.0 < fraction < 1.0:
-        p.add(s._join(where, "span_fraction"), f"expected a fraction of the leading edge's "
+        p.add(key_path(where, "span_fraction"), f"expected a fraction of the leading edge's "
               f"length strictly between 0 and 1 (the tips are supports), found {fraction!r}")
-    chord = s._number(p, table, "chord_m", where, positive=True)
-    segments = s._number(p, table, "segments", where, positive=True, integer=True)
+    chord = read_number(p, table, "chord_m", where, positive=True)
+    segments = read_number(p, table, "segments", where, positive=True, integer=True)
     radius = _taper_radius(p, table, where, "root_radius_m", "tip_radius_m",
                            lambda a, b: ((0.0, a), (1.0, b)))
     own_pressure = any(k.startswith("pressure_") for k in table)
-    pressure = s._pressure(p, table, where, "pressure") if own_pressure else None
-    direction = s._vector_key(p, table, "direction", where, default=(1, 0, 0), nonzero=True)
+    pressure = read_pressure(p, table, where, "pressure") if own_pressure else None
+    direction = read_vector_key(p, table, "direction", where, default=(1, 0, 0), nonzero=True)
     mass, line_load = _common(p, table, where)
     bending, torsion = _laws(p, table, where, pressure if own_pressure else le_pressure,
                              radius, required=False)
-    if len(p.lines) > count:
+    if len(p) > count:
         return None
     return Strut(float(fraction), float(chord), radius, segments, pressure=pressure,
                  bending_law=bending, torsion_law=torsion, mass_per_length=float(mass),
@@ -165,28 +179,27 @@ def _strut(p, table, where, le_pressure):
 
 def read_kite(p, value, ctx) -> None:
     """Check the ``[kite]`` table and add its tubes, connections, supports and node names
-    to the spec context ``ctx`` (see :mod:`jaxtube._spec`)."""
-    table = s._table(p, value, "kite")
+    to the spec context ``ctx`` (:class:`~.context.SpecContext`)."""
+    table = read_table(p, value, "kite")
     if table is None:
         return
-    count = len(p.lines)
-    s._check_keys(p, table, "kite", ("tip_support", "leading_edge", "strut"),
-                  {"leading_edge": "a [kite.leading_edge] table"})
-    tip_support = s._string(p, table, "tip_support", "kite", default="clamped",
-                            choices=("clamped", "pinned"))
+    count = len(p)
+    check_keys(p, table, "kite", ("tip_support", "leading_edge", "strut"),
+               {"leading_edge": "a [kite.leading_edge] table"})
+    tip_support = read_string(p, table, "tip_support", "kite", default="clamped",
+                              choices=("clamped", "pinned"))
     le = (_leading_edge(p, table["leading_edge"], "kite.leading_edge")
           if "leading_edge" in table else None)
     struts = []
-    tables = s._table(p, table["strut"], "kite.strut", array=True) if "strut" in table else []
-    for index, strut_table in enumerate(tables or []):
-        struts.append(_strut(p, strut_table, s._join("kite.strut", index),
-                             None if le is None else le["pressure"]))
+    strut_tables = array_tables(p, table["strut"], "kite.strut") if "strut" in table else []
+    for where, strut_table in strut_tables:
+        struts.append(_strut(p, strut_table, where, None if le is None else le["pressure"]))
     names = [LEADING_EDGE] + [f"strut_{k + 1}" for k in range(len(struts))]
     for name in names:
         if name in ctx.tube_nodes:
             p.add("kite", f"the kite's tube {name!r} clashes with a [[tube]] of that name "
                   "(rename the [[tube]])")
-    if len(p.lines) > count or le is None or any(strut is None for strut in struts):
+    if len(p) > count or le is None or any(strut is None for strut in struts):
         ctx.tube_names_known = False
         return
     try:
@@ -202,12 +215,12 @@ def read_kite(p, value, ctx) -> None:
     ctx.node_aliases.update(kite.node_aliases())
 
     def node(ref: str, where: str):
-        return s._node_ref(p, ref, where, ctx)
+        return read_node(p, ref, where, ctx)
 
     for support in kite.supports():
         ctx.supports.append(("kite.tip_support", node(support.node, "kite.tip_support"),
                              support.kind))
     for k, connection in enumerate(kite.connections()):
-        where = s._join("kite.strut", k)
+        where = key_path("kite.strut", k)
         ctx.connections.append((where, node(connection.node_a, where),
                                 node(connection.node_b, where), connection.kind))

@@ -25,7 +25,7 @@ args) = 0`` (``F`` the KKT residual) the tangent is ``-K^{-1} dF/dargs . dargs``
 the KKT matrix. It is written as a ``jax.custom_jvp``; reverse mode follows by JAX's
 transposition of that linear map, so no while-loop is ever differentiated.
 
-The solve never raises inside traced code: it returns a :class:`Equilibrium` with a
+The solve never raises inside traced code: it returns a :class:`EquilibriumResult` with a
 ``result`` code (:data:`RESULT_MESSAGES`), and callers turn codes into words.
 """
 
@@ -40,7 +40,7 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
-from ._results import RESULTS, messages
+from .results import RESULTS, messages
 
 RESULT_MESSAGES = messages(RESULTS)
 
@@ -65,7 +65,7 @@ class NewtonKKT(eqx.Module):
     max_regularisations: int = eqx.field(static=True, default=12)
 
 
-class Equilibrium(eqx.Module):
+class EquilibriumResult(eqx.Module):
     """Result of one equilibrium solve.
 
     Attributes:
@@ -254,7 +254,7 @@ def solve_equilibrium(
     solver: NewtonKKT = NewtonKKT(),
     initial_multipliers: Array | None = None,
     hessian=None,
-) -> Equilibrium:
+) -> EquilibriumResult:
     """Minimise an energy subject to equality constraints, both from one ``objective``.
 
     Args:
@@ -295,7 +295,7 @@ def solve_equilibrium(
     z, lam, (converged, steps, code, res_g, res_c) = _equilibrium(
         flat_objective, flat_hessian, solver, args, z0, lam0
     )
-    return Equilibrium(
+    return EquilibriumResult(
         state=unravel(z), multipliers=lam, converged=converged, iterations=steps, result=code,
         residual=res_g, constraint_violation=res_c,
     )

@@ -1,0 +1,172 @@
+"""Equilibrium of a structure at one load level: :func:`equilibrium` and its :class:`Solution`.
+
+The state that minimises the total potential energy subject to the supports (and a
+displacement control) is found by the Newton-KKT solver (:mod:`jaxtube._solver`);
+:func:`solve_load_level` then reports the deformed shape, joint curvatures, moments and
+regimes, the support reactions and the control force. Gradients w.r.t. the parameters come
+by the implicit function theorem. :func:`check_converged` turns failed steps into words.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._controls import DisplacementControl
+from ._mechanics.energy import energy_and_constraints, joint_moments, world_joint_moments
+from ._mechanics.geometry import reference_geometry
+from ._mechanics.hessian import lagrangian_hessian
+from ._mechanics.kinematics import configuration, initial_state, spring_joints
+from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
+from ._structure.structure import GROUND, JOINT_GROUND, Structure, StructureParameters
+
+
+class Solution(eqx.Module):
+    """Equilibrium of a structure (one load level; under a path every leaf gains a leading
+    ``[K]`` step axis).
+
+    Attributes:
+        state: ``{"root_position": [3], "segment_rotation": [S, 3]}`` (see
+            ``jaxtube._mechanics``).
+        multipliers: ``[m]`` Lagrange multipliers (supports, loops, control).
+        converged, iterations, result, residual: solver report (see RESULT_MESSAGES).
+        node_position: deformed node positions ``[N, 3]`` [m].
+        joint_rotation: rotation vectors of the spring joints ``[J, 3]`` [rad].
+        joint_curvature: ``[J, 3]`` [1/m] (bending 1, bending 2, twist).
+        joint_moment: joint frame ``[J, 3]`` [N m]; joint_moment_world: world frame.
+        joint_regime: ``[J]`` 0 unwrinkled, 1 wrinkled, 2 collapsed.
+        reaction_force: force each support exerts on the structure ``[n_supports, 3]`` [N].
+        reaction_moment: moment each support exerts on the structure ``[n_supports, 3]``
+            [N m] (clamps; zero for pins).
+        control_force: force applied by the displacement actuator along its direction [N]
+            (under force control: the applied force at that node along it, or 0).
+        control_displacement: ``(x - X) . d`` at the controlled node [m].
+        load_factor: the force-control factor (1 under displacement control).
+    """
+
+    state: dict
+    multipliers: Array
+    converged: Array
+    iterations: Array
+    result: Array
+    residual: Array
+    node_position: Array
+    joint_rotation: Array
+    joint_curvature: Array
+    joint_moment: Array
+    joint_moment_world: Array
+    joint_regime: Array
+    reaction_force: Array
+    reaction_moment: Array
+    control_force: Array
+    control_displacement: Array
+    load_factor: Array
+
+
+def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
+    state = eq.state
+    config = configuration(structure, geometry, state)
+    joints = spring_joints(structure, geometry, state)
+    moment, regime = joint_moments(joints, params)
+    n_support = len(structure.supports)
+    reactions = -jnp.reshape(eq.multipliers[: 3 * n_support], (n_support, 3))
+    world_moment = world_joint_moments(config, joints, moment)
+    # A clamp joint's spring moment m acts on its segment as -m (the ground side is fixed).
+    clamp_of_support = np.zeros((n_support, world_moment.shape[0]))
+    support_index = {node: k for k, (node, _) in enumerate(structure.supports)}
+    topology = structure.spring_joint_topology()
+    grounded = topology.parent_segment == GROUND
+    for j, (node, kind, ground) in enumerate(zip(joints.node, topology.kind, grounded)):
+        if ground and kind == JOINT_GROUND and node in support_index:
+            clamp_of_support[support_index[node], j] = -1.0
+    reaction_moment = jnp.asarray(clamp_of_support) @ world_moment
+    if control is not None:
+        node, direction, _ = control
+        control_force = -eq.multipliers[-1]
+        displacement = jnp.dot(config.node_position[node] - params.node_position[node], direction)
+    else:
+        control_force = jnp.zeros(())
+        displacement = jnp.zeros(())
+    return Solution(
+        state=state,
+        multipliers=eq.multipliers,
+        converged=eq.converged,
+        iterations=eq.iterations,
+        result=eq.result,
+        residual=eq.residual,
+        node_position=config.node_position,
+        joint_rotation=joints.rotation,
+        joint_curvature=joints.rotation / joints.tributary[:, None],
+        joint_moment=moment,
+        joint_moment_world=world_moment,
+        joint_regime=regime,
+        reaction_force=reactions,
+        reaction_moment=reaction_moment,
+        control_force=control_force,
+        control_displacement=displacement,
+        load_factor=jnp.asarray(factor, dtype=float),
+    )
+
+
+def equilibrium(
+    structure: Structure,
+    params: StructureParameters,
+    control: DisplacementControl | None = None,
+    displacement=None,
+    initial=None,
+    solver: NewtonKKT = NewtonKKT(),
+) -> Solution:
+    """Solve one equilibrium.
+
+    Without ``control`` the loads in ``params`` act as given. With a
+    :class:`DisplacementControl`, ``displacement`` [m] is imposed (default: its last value).
+    ``initial`` is a previous :class:`Solution` to warm-start from.
+    """
+    geometry = reference_geometry(structure, params)
+    ctrl = None
+    if control is not None:
+        value = control.displacements[-1] if displacement is None else displacement
+        ctrl = (control.node, control.direction, jnp.asarray(value, dtype=float))
+    state0 = initial_state(structure, params) if initial is None else initial.state
+    lam0 = None if initial is None else initial.multipliers
+    return solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, 1.0)
+
+
+def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, factor) -> Solution:
+    """One equilibrium from ``state0`` (multipliers ``lam0`` or ``None``), reported as a
+    :class:`Solution`. ``ctrl`` is ``None`` or ``(node, direction [3], displacement [m])``;
+    ``factor`` is the load factor to report (the loads in ``params`` are already scaled)."""
+    def objective(state, args):
+        p, g, c = args
+        control = None if c is None else (ctrl[0], c[0], c[1])
+        return energy_and_constraints(structure, g, state, p, control)
+
+    def hessian(state, multipliers, args):
+        p, g, c = args
+        return lagrangian_hessian(structure, g, p, None if c is None else (ctrl[0], c[0], c[1]),
+                                  state, multipliers)
+
+    c_args = None if ctrl is None else (ctrl[1], ctrl[2])
+    eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
+                           hessian=hessian)
+    return _post_process(structure, params, geometry, eq, ctrl, factor)
+
+
+def check_converged(solution: Solution, what: str = "solve") -> None:
+    """Raise ``RuntimeError`` naming every step that did not converge (host-side helper)."""
+    converged = np.atleast_1d(np.asarray(solution.converged))
+    if converged.all():
+        return
+    codes = np.atleast_1d(np.asarray(solution.result))
+    residual = np.atleast_1d(np.asarray(solution.residual))
+    bad = np.flatnonzero(~converged)
+    lines = [
+        f"step {k}: {RESULT_MESSAGES.get(int(codes[k]), 'unknown')} "
+        f"(KKT residual {residual[k]:.3g})"
+        for k in bad[:10]
+    ]
+    more = f" and {len(bad) - 10} more" if len(bad) > 10 else ""
+    raise RuntimeError(f"{what}: {len(bad)} of {converged.size} steps did not converge:\n  "
+                       + "\n  ".join(lines) + more)
