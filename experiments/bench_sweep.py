@@ -51,8 +51,8 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import fitting  # noqa: E402
-from fitting._rig import TubeModel  # noqa: E402
-from fitting._sweep import (  # noqa: E402
+from fitting._bench.rig import TubeModel  # noqa: E402
+from fitting._sweep.sweep import (  # noqa: E402
     STATUS_MOMENT_MISSED,
     STATUS_SOLVER_FAILED,
     _compiled_chunk,

@@ -47,6 +47,7 @@ from ._mechanics import Configuration as Configuration
 from ._mechanics import configuration as configuration
 from ._mechanics import initial_state as initial_state
 from ._mechanics import reference_geometry as reference_geometry
+from ._mechanics import spring_joint_topology as spring_joint_topology
 from ._model import DisplacementControl as DisplacementControl
 from ._model import ForceControl as ForceControl
 from ._model import Solution as Solution
@@ -55,13 +56,17 @@ from ._model import equilibrium as equilibrium
 from ._model import scale_loads as scale_loads
 from ._model import solve_path as solve_path
 from ._model import total_energy as total_energy
+from ._plot import deformed_shape_figure as deformed_shape_figure
+from ._plot import force_deflection_figure as force_deflection_figure
 from ._results import RESULTS as RESULTS
+from ._results import messages as result_messages
 from ._rotation import rotation_matrix as rotation_matrix
 from ._rotation import rotation_vector as rotation_vector
 from ._solver import RESULT_MESSAGES as RESULT_MESSAGES
 from ._solver import Equilibrium as Equilibrium
 from ._solver import NewtonKKT as NewtonKKT
 from ._solver import solve_equilibrium as solve_equilibrium
+from ._spec import LoadedSpec as LoadedSpec
 from ._spec import SpecError as SpecError
 from ._spec import load_spec as load_spec
 from ._structure import Connection as Connection

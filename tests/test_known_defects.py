@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from fitting._rig import DOWN, CantileverRig, TubeModel
+from fitting._bench.rig import DOWN, CantileverRig, TubeModel
 
 
 @pytest.mark.xfail(strict=True, reason="false convergence at the tension-field law's "

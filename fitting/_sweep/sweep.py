@@ -101,23 +101,16 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 import jaxtube as jt
 
-from ._planar_cantilever import deflection_at_load, load_at_root_curvature
-from ._rig import DEFAULT_SEGMENTS, DOWN, CantileverRig, TubeModel
-
-STATUS_OK = 0
-STATUS_NO_REGIME = 1
-STATUS_SOLVER_FAILED = 2
-STATUS_MOMENT_MISSED = 3
-STATUS_UNREACHABLE = 4
-STATUS_MESSAGES = {
-    STATUS_OK: "ok",
-    STATUS_NO_REGIME: "not applicable: the law has no such regime below 1e6 1/m",
-    STATUS_SOLVER_FAILED: "equilibrium solve failed",
-    STATUS_MOMENT_MISSED: "load iteration did not reach the target root moment",
-    STATUS_UNREACHABLE: ("not applicable: the root joint reaches this curvature only with "
-                         "its segment turned past the vertical (no equilibrium under a "
-                         "downward tip load)"),
-}
+from .._bench.planar import deflection_at_load, load_at_root_curvature
+from .._bench.rig import DEFAULT_SEGMENTS, DOWN, CantileverRig, TubeModel
+from .status import (
+    STATUS_MESSAGES,
+    STATUS_MOMENT_MISSED,
+    STATUS_NO_REGIME,
+    STATUS_OK,
+    STATUS_SOLVER_FAILED,
+    STATUS_UNREACHABLE,
+)
 
 #: Bracket of the bisection for the regime boundaries [1/m], and its halvings.
 CURVATURE_BRACKET = (1e-9, 1e6)

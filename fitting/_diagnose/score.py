@@ -14,7 +14,7 @@ import math
 import numpy as np
 import scipy.stats
 
-from ._result import FitResult
+from .._calibrate.result import FitResult
 
 
 def parameter_names(effect) -> tuple[str, ...]:

@@ -30,7 +30,7 @@ import numpy as np
 
 import jaxtube as jt
 
-from ._data import MeasuredData
+from .._data import MeasuredData
 
 #: Segments per tube in the calibration model. With the half-tributary clamp joint a
 #: 12-segment chain is within about 0.1 % of the elastica tip deflection
@@ -180,7 +180,7 @@ class CantileverRig:
     def specimen_parameters(self, model: TubeModel, pressure, radius, length):
         """:class:`jaxtube.StructureParameters` of one specimen with the model's laws and
         effects (traceable in all numbers)."""
-        from ._effects import RigSpecimen, set_clamp_compliance, set_shear_flexibility
+        from .effects import RigSpecimen, set_clamp_compliance, set_shear_flexibility
 
         structure, params = self.template()
         tubes = len(structure.tube_names)
