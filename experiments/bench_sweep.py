@@ -52,12 +52,8 @@ import jax.numpy as jnp  # noqa: E402
 
 import fitting  # noqa: E402
 from fitting._bench.rig import TubeModel  # noqa: E402
-from fitting._sweep.sweep import (  # noqa: E402
-    STATUS_MOMENT_MISSED,
-    STATUS_SOLVER_FAILED,
-    _compiled_chunk,
-    _planar_point,
-)
+from fitting._sweep.status import STATUS_MOMENT_MISSED, STATUS_SOLVER_FAILED  # noqa: E402
+from fitting._sweep.sweep import _compiled_chunk, _planar_point  # noqa: E402
 
 TARGET_S = 20.0
 TIP_LOAD = 20.0  # [N]

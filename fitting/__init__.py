@@ -59,6 +59,9 @@ from ._figures.plots import (
     ranking_figure,
     where_it_fails_figure,
 )
+from ._sweep.result import SweepResult, SweepSettings
+from ._sweep.status import STATUS_MESSAGES, SweepStatus
+from ._sweep.sweep import regime_boundaries, sweep
 
 __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
@@ -72,12 +75,9 @@ __all__ = [
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
+    "draw_ranking", "draw_rmse_per_curve",
+    "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
-
-from ._sweep.sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundaries, sweep
-
-__all__ += ["draw_ranking", "draw_rmse_per_curve"]
-__all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]
 
 #: The package version: one number for the engine and the workbench.
 __version__ = _jt.__version__

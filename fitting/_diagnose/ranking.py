@@ -341,7 +341,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
     problem = make_problem(data, scaling, rig, fit_options, effects=candidates)
     bar = None
     if options.progress:
-        from tqdm.auto import tqdm
+        from tqdm.auto import tqdm  # lazy: only a diagnosis that shows progress needs it
         bar = tqdm(total=1 + len(candidates) * (1 + min(options.max_additions,
                                                         len(candidates))),
                    desc="diagnose (fits)", unit="fit", leave=False)
