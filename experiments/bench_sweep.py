@@ -2,7 +2,7 @@
 
 Grid: 100 pressures (0.1-0.5 bar) x 100 radii (30-150 mm) = 10,000 points, 1 m cantilever,
 12 segments, tension-field law (E t = 150 kN/m), tip load 20 N. The sweep takes the planar
-route (a bare law; ``fitting._planar_cantilever``: fixed Newton steps on the statics of the
+route (a bare law; ``fitting._bench.planar``: fixed Newton steps on the statics of the
 chain). Reported: the compile time of one chunk program, the wall time of the whole grid
 (all chunks, measured, not projected) as the median of ``--repeats`` warm runs, points per
 second, and two baselines in the same process:

@@ -42,7 +42,7 @@ DOWN = np.array([0.0, 0.0, -1.0])
 
 
 class TubeModel(eqx.Module):
-    """What a calibration fits: the laws of the tube and the effects (``fitting._effects``).
+    """What a calibration fits: the laws of the tube and the effects (``fitting._bench.effects``).
 
     Attributes:
         bending_law: moment-curvature law of bending (any :class:`jaxtube.AbstractMomentLaw`).

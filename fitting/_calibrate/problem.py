@@ -5,7 +5,7 @@ All curves are fitted in one joint weighted least-squares problem in force,
     minimise  sum_i w_i ((F_model(u_i; theta) - F_i) / sigma)^2  (+ prior terms),
 
 with ``F_model`` the jaxtube equilibrium force at the measured tip deflection ``u_i``
-(displacement control, so plateau points count; :mod:`fitting._rig`). The residual
+(displacement control, so plateau points count; :mod:`fitting._bench.rig`). The residual
 Jacobian comes from forward-mode derivatives through the equilibrium solve, which jaxtube
 gives by the implicit function theorem (never by differentiating the Newton loop).
 

@@ -1,5 +1,5 @@
-"""What every subcommand of the command line shares: argparse types and the atomic writer
-of an output directory."""
+"""What the subcommands of the command line share: argparse types, the check of ``--out`` and
+of the measurement file, and the atomic writer of an output directory."""
 
 from __future__ import annotations
 
@@ -7,8 +7,17 @@ import argparse
 import math
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
+
+from .._data import DataError, load_measurements
+
+
+def add_data_argument(parser: argparse.ArgumentParser) -> None:
+    """The positional measurement file of ``fit`` and ``diagnose`` (:mod:`fitting._data`)."""
+    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
+                                                "radius_m,length_m,deflection_mm,force_N)")
 
 
 def positive_int(text: str) -> int:
@@ -31,6 +40,39 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
     return value
+
+
+def pivot_counts(text: str) -> tuple[int, int, int]:
+    """argparse type: pivots per regime, ``unwrinkled,wrinkled,collapsed`` (e.g. ``2,2,1``)."""
+    try:
+        counts = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        counts = ()
+    if len(counts) != 3 or min(counts) < 1:
+        raise argparse.ArgumentTypeError(
+            f"expected three positive integers like 2,2,1 (unwrinkled, wrinkled, collapsed "
+            f"pivots), found {text!r}")
+    return counts
+
+
+def bad_output_directory(out: Path) -> bool:
+    """Whether ``--out`` names an existing file (then says so on stderr: exit code 2)."""
+    if out.exists() and not out.is_dir():
+        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
+        return True
+    return False
+
+
+def load_input(args):
+    """The measurements of ``args.data`` for a command writing into ``args.out``, or None
+    after printing why not (bad output directory, bad data: exit code 2, nothing written)."""
+    if bad_output_directory(args.out):
+        return None
+    try:
+        return load_measurements(args.data)
+    except DataError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return None
 
 
 def write_directory(out: Path, writers: dict) -> None:

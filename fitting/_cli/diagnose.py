@@ -41,8 +41,14 @@ from .._diagnose import ranking as _diagnose
 from .._diagnose.report import diagnosis_report
 from .._figures.plots import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
 from .._json import write_json
-from .common import positive_float, positive_int, write_directory
-from .fit import _pivots, load_input
+from .common import (
+    add_data_argument,
+    load_input,
+    pivot_counts,
+    positive_float,
+    positive_int,
+    write_directory,
+)
 
 DEMO_DATA = "demo_hidden_effect.csv"
 #: What the bundled demo dataset hides (jaxtube/data/README.md); printed after the verdict.
@@ -56,8 +62,7 @@ def add_diagnose(subparsers) -> None:
         description="Fit the bending law, compare with the measurements, rank candidate "
                     "effects (score tests, refits, BIC, cross-validation), add the "
                     "significant ones one at a time and report before/after.")
-    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
-                                                "radius_m,length_m,deflection_mm,force_N)")
+    add_data_argument(parser)
     _add_common(parser, default_out=None)
     parser.set_defaults(run=run_diagnose)
 
@@ -83,7 +88,7 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--noise-N", type=positive_float, default=None,
                         help="force noise standard deviation [N] (default: estimated from "
                              "the scatter of the data, without a model)")
-    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
                         help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
     parser.add_argument("--segments", type=positive_int, default=None,
                         help="rigid segments of the model tube (default 12)")

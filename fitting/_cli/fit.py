@@ -8,7 +8,8 @@ standard errors, identifiability notes and per-curve / overall RMSE, and write i
 ``path/to/file.py:ClassName`` (a :class:`fitting.Effect` subclass).
 
 - ``parameters.json``: the fitted law and its uncertainty (format in
-  :mod:`fitting._calibrate.result`); ``jaxtube simulate --params`` and ``jaxtube predict`` load it;
+  :mod:`fitting._calibrate.result`); ``jaxtube simulate --params`` and ``jaxtube predict``
+  load it;
 - ``fit.png``: fitted against measured curves with 95 % bands, and residuals;
 - ``curves.csv``: ``curve,deflection_mm,force_N,model_force_N,residual_N,worst_regime``.
 
@@ -38,22 +39,18 @@ from .._calibrate.fit import fit
 from .._calibrate.parameters_file import load_law, predict_from_document
 from .._calibrate.problem import FitError, FitOptions, Prior
 from .._calibrate.result import Z_95
-from .._data import DataError, load_measurements, unit_factor
+from .._data import unit_factor
 from .._figures.plots import fit_figure, prediction_figure
 from .._json import write_json
-from .common import positive_float, positive_int, write_directory
-
-
-def _pivots(text: str) -> tuple[int, int, int]:
-    try:
-        counts = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        counts = ()
-    if len(counts) != 3 or min(counts) < 1:
-        raise argparse.ArgumentTypeError(
-            f"expected three positive integers like 2,2,1 (unwrinkled, wrinkled, collapsed "
-            f"pivots), found {text!r}")
-    return counts
+from .common import (
+    add_data_argument,
+    bad_output_directory,
+    load_input,
+    pivot_counts,
+    positive_float,
+    positive_int,
+    write_directory,
+)
 
 
 def _assignment(text: str) -> tuple[str, float]:
@@ -80,12 +77,11 @@ def add_fit(subparsers) -> None:
         description="Fit the pivot scaling of the three-regime spline law to every measured "
                     "force-deflection curve at once (Levenberg-Marquardt through the "
                     "equilibrium solver), with standard errors and 95 % bands.")
-    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
-                                                "radius_m,length_m,deflection_mm,force_N)")
+    add_data_argument(parser)
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--form", choices=FORMS, default="paper",
                         help="pivot scaling: paper A (p r^3)^B, or separate A p^B r^C")
-    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
                         help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
     parser.add_argument("--segments", type=positive_int, default=None,
                         help="rigid segments of the model tube (default 12)")
@@ -120,25 +116,6 @@ def add_predict(subparsers) -> None:
     parser.add_argument("--points", type=positive_int, default=25)
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.set_defaults(run=run_predict)
-
-
-def _bad_out(out: Path) -> bool:
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
-        return True
-    return False
-
-
-def load_input(args):
-    """The measurements of ``args.data`` for a command writing into ``args.out``, or None
-    after printing why not (bad output directory, bad data: exit code 2, nothing written)."""
-    if _bad_out(args.out):
-        return None
-    try:
-        return load_measurements(args.data)
-    except DataError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return None
 
 
 def run_fit(args) -> int:
@@ -206,7 +183,7 @@ def fit_report(result) -> str:
 
 
 def run_predict(args) -> int:
-    if _bad_out(args.out):
+    if bad_output_directory(args.out):
         return 2
     try:
         load_law(args.params)  # validates the file with clear errors

@@ -44,7 +44,7 @@ import jaxtube as jt
 
 from .._calibrate.parameters_file import load_law
 from .._json import finite_or_none, write_json
-from .common import positive_int, write_directory
+from .common import bad_output_directory, positive_int, write_directory
 
 OUTPUT_FILES = ("path.csv", "force_deflection.png", "deformed_shape.png", "summary.json")
 CSV_COLUMNS = (
@@ -104,8 +104,7 @@ def _simulate(args) -> int:
     report = _Reporter(args.quiet)
     started = time.perf_counter()
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        report.problem(f"error: --out {out} exists and is not a directory")
+    if bad_output_directory(out):
         return 2
     try:
         spec = jt.load_spec(args.spec, steps=args.steps)

@@ -45,7 +45,7 @@ from .._calibrate.parameters_file import load_law
 from .._data import unit_factor
 from .._json import write_json
 from .._sweep.sweep import SweepSettings, sweep
-from .common import positive_float, positive_int, write_directory
+from .common import bad_output_directory, positive_float, positive_int, write_directory
 
 LAWS = ("tension_field", "empirical_2011", "linear")
 QUANTITIES = (  # (result field, file, title, unit, factor from SI)
@@ -139,8 +139,7 @@ def _law(args):
 def run_sweep(args) -> int:
     started = time.perf_counter()
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
+    if bad_output_directory(out):
         return 2
     if not (math.isfinite(args.tip_load_N) and args.tip_load_N >= 0):
         print(f"error: --tip-load-N must be a finite number >= 0, found {args.tip_load_N:g}",

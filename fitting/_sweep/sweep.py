@@ -32,7 +32,7 @@ tip's horizontal displacement ``u``.
   cantilever is statically determinate and stays in the x-z plane, so the equilibrium of the
   chain is the statics of its cuts, ``M(kappa_k) = F a_k`` at every joint ``k`` (lever arm
   ``a_k`` from joint ``k`` to the tip), a system of ``n`` equations in ``n`` unknowns
-  (:mod:`fitting._planar_cantilever`, which derives it from the energy of
+  (:mod:`fitting._bench.planar`, which derives it from the energy of
   ``jaxtube._mechanics`` and shows that it is the same discrete model, not an
   approximation). The wrinkling load fixes the root curvature at the law's wrinkling
   curvature and solves for ``F`` and the other joint rotations; the collapse load likewise;
@@ -161,7 +161,7 @@ def _thresholds(law: jt.AbstractMomentLaw, pressure, radius):
 def _planar_point(law: jt.AbstractMomentLaw, settings: SweepSettings, pressure, radius,
                   length, tip_load):
     """All quantities of one specimen by the planar route (scalars in; traced under
-    ``vmap``): three solves of :mod:`fitting._planar_cantilever`."""
+    ``vmap``): three solves of :mod:`fitting._bench.planar`."""
     stiffness, kappa_w, kappa_c, moment_w, moment_c, w_defined, c_defined = _thresholds(
         law, pressure, radius)
     n, tolerance = settings.segments, settings.planar_tolerance
