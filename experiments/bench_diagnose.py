@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import fitting as ft
-from fitting._diagnose import parameter_names
+from fitting._diagnose.score import parameter_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = {

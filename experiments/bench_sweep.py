@@ -2,7 +2,7 @@
 
 Grid: 100 pressures (0.1-0.5 bar) x 100 radii (30-150 mm) = 10,000 points, 1 m cantilever,
 12 segments, tension-field law (E t = 150 kN/m), tip load 20 N. The sweep takes the planar
-route (a bare law; ``fitting._planar_cantilever``: fixed Newton steps on the statics of the
+route (a bare law; ``fitting._bench.planar``: fixed Newton steps on the statics of the
 chain). Reported: the compile time of one chunk program, the wall time of the whole grid
 (all chunks, measured, not projected) as the median of ``--repeats`` warm runs, points per
 second, and two baselines in the same process:
@@ -51,13 +51,9 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import fitting  # noqa: E402
-from fitting._rig import TubeModel  # noqa: E402
-from fitting._sweep import (  # noqa: E402
-    STATUS_MOMENT_MISSED,
-    STATUS_SOLVER_FAILED,
-    _compiled_chunk,
-    _planar_point,
-)
+from fitting._bench.rig import TubeModel  # noqa: E402
+from fitting._sweep.status import STATUS_MOMENT_MISSED, STATUS_SOLVER_FAILED  # noqa: E402
+from fitting._sweep.sweep import _compiled_chunk, _planar_point  # noqa: E402
 
 TARGET_S = 20.0
 TIP_LOAD = 20.0  # [N]

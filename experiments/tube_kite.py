@@ -40,9 +40,6 @@ except ModuleNotFoundError:  # run from a checkout without installing the packag
 import jax
 import jax.numpy as jnp
 
-from jaxtube._mechanics import initial_state, reference_geometry, spring_joints
-from jaxtube._plot import deformed_shape_figure, force_deflection_figure
-
 PRESSURE = 2.5e4  # Pa
 WALL_MODULUS = 150e3  # E t [N/m]
 
@@ -60,11 +57,7 @@ def build_kite(segments: int, struts: int) -> jt.TubeKite:
 
 def joint_nodes(structure, params) -> np.ndarray:
     """Node of every spring joint, in the order of ``Solution.joint_regime`` (static)."""
-    def joints():
-        geometry = reference_geometry(structure, params)
-        return spring_joints(structure, geometry, initial_state(structure, params))
-
-    return np.asarray(jax.eval_shape(joints).node)
+    return np.asarray(structure.spring_joint_topology().node)
 
 
 def first_step(regime: np.ndarray, level: int) -> np.ndarray:
@@ -147,11 +140,11 @@ def main(argv=None) -> int:
                              f"{displacements[k1] * 1e3:.6g}" if k1 >= 0 else "",
                              k2 + 1 if k2 >= 0 else ""])
     (args.out / "summary.txt").write_text("\n".join(lines) + "\n")
-    force_deflection_figure(displacements * 1e3, force, regime.max(axis=1), converged,
+    jt.force_deflection_figure(displacements * 1e3, force, regime.max(axis=1), converged,
                             title="tube kite: crown pushed down, tips clamped",
                             xlabel="crown deflection [mm]").savefig(
         args.out / "force_deflection.png", dpi=120)
-    deformed_shape_figure(
+    jt.deformed_shape_figure(
         structure, np.asarray(params.node_position), np.asarray(solution.node_position),
         converged, joint_node=nodes, joint_regime=regime,
         control=(crown, np.array([0.0, 0.0, -1.0]), force),

@@ -5,30 +5,13 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 :class:`FitOptions`, :class:`FitResult`), the parameters file (:func:`load_law`), the
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
 and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`).
-The independent continuum reference solver is :mod:`fitting.continuum`.
+The independent continuum reference solver is :mod:`fitting.continuum`; the command line is
+:mod:`fitting._cli` (``jaxtube``).
 """
 
-from ._calibrate import (
-    Convergence,
-    FitError,
-    FitOptions,
-    Prior,
-    estimate_noise,
-    fit,
-    fit_problem,
-    make_problem,
-)
-from ._compare import Comparison, Group, ResidualVerdict, compare
-from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
-from ._diagnose import (
-    CandidateRanking,
-    DiagnoseOptions,
-    Diagnosis,
-    DiagnosisStep,
-    default_candidates,
-    diagnose,
-)
-from ._effects import (
+import jaxtube as _jt
+
+from ._bench.effects import (
     BUILT_IN_EFFECTS,
     MODEL_EXTENSIONS,
     ClampCompliance,
@@ -39,7 +22,36 @@ from ._effects import (
     SelfWeight,
     Shear,
 )
-from ._figures import (
+from ._bench.rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
+from ._bench.scaling import (
+    PivotScaling,
+    initial_vector,
+    reference_specimen,
+    wall_stiffness_estimates,
+)
+from ._calibrate.fit import fit, fit_problem
+from ._calibrate.parameters_file import load_law
+from ._calibrate.problem import (
+    Convergence,
+    FitError,
+    FitOptions,
+    Prior,
+    estimate_noise,
+    make_problem,
+)
+from ._calibrate.result import FitResult, ParameterEstimate
+from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
+from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
+from ._diagnose.ranking import (
+    CandidateRanking,
+    DiagnoseOptions,
+    Diagnosis,
+    DiagnosisStep,
+    default_candidates,
+    diagnose,
+)
+from ._diagnose.score import ScoreTest, cross_validated_rmse, score_test
+from ._figures.plots import (
     before_after_figure,
     draw_ranking,
     draw_rmse_per_curve,
@@ -47,10 +59,9 @@ from ._figures import (
     ranking_figure,
     where_it_fails_figure,
 )
-from ._result import FitResult, ParameterEstimate, load_law
-from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
-from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
-from ._score import ScoreTest, cross_validated_rmse, score_test
+from ._sweep.result import SweepResult, SweepSettings
+from ._sweep.status import STATUS_MESSAGES, SweepStatus
+from ._sweep.sweep import regime_boundaries, sweep
 
 __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
@@ -64,9 +75,9 @@ __all__ = [
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
+    "draw_ranking", "draw_rmse_per_curve",
+    "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 
-from ._sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundaries, sweep
-
-__all__ += ["draw_ranking", "draw_rmse_per_curve"]
-__all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]
+#: The package version: one number for the engine and the workbench.
+__version__ = _jt.__version__

@@ -35,6 +35,8 @@ from ._mechanics import initial_state as initial_state
 from ._mechanics import reference_geometry as reference_geometry
 from ._mechanics import total_energy as total_energy
 from ._path import solve_path as solve_path
+from ._plot import deformed_shape_figure as deformed_shape_figure
+from ._plot import force_deflection_figure as force_deflection_figure
 from ._problems import Problem as Problem
 from ._problems import ProblemReport as ProblemReport
 from ._rotation import rotation_matrix as rotation_matrix
@@ -44,6 +46,8 @@ from ._solver import RESULTS as RESULTS
 from ._solver import EquilibriumResult as EquilibriumResult
 from ._solver import NewtonKKT as NewtonKKT
 from ._solver import solve_equilibrium as solve_equilibrium
+from ._solver.results import messages as result_messages
+from ._spec import LoadedSpec as LoadedSpec
 from ._spec import SpecError as SpecError
 from ._spec import load_spec as load_spec
 from ._structure import Connection as Connection

@@ -1,4 +1,4 @@
-"""Tests of the independent continuum cantilever reference (fitting/continuum.py).
+"""Tests of the independent continuum cantilever reference (fitting/continuum/).
 
 Closed forms (elastica table, small-deflection formulas, Comer-Levy moments) and the shared
 dataset ``tests/data/cantilever_shear.csv``, made by another continuum model, which this

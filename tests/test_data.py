@@ -221,7 +221,7 @@ def test_each_bad_input_names_file_line_and_column(tmp_path, lines, line, column
 
 def test_disagreeing_setup_and_a_new_setup_kind(tmp_path, monkeypatch):
     # A new setup kind is one registry entry; rows of a curve must agree on the setup.
-    from fitting import _data
+    from fitting._data import setups as _data
 
     kinds = {**_data._SETUP_KINDS, "three_point": _data._SetupKind("test", _data._no_arguments)}
     monkeypatch.setattr(_data, "_SETUP_KINDS", kinds)

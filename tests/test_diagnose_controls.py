@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import fitting as ft
-from jaxtube._cli import main
+from fitting._cli import main
 
 DATA = Path(__file__).parent / "data"
 
@@ -33,7 +33,7 @@ def test_shared_dataset_shear_is_found():
 def test_runs_test_and_chi2_tell_noise_from_misfit():
     """The verdict statistic on residuals we construct: white noise is noise; a smooth
     bias of the same size is systematic."""
-    from fitting._compare import residual_verdict
+    from fitting._diagnose.compare import residual_verdict
 
     rng = np.random.default_rng(3)
 

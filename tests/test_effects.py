@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from fitting import _effects as fx
 from fitting import continuum
-from fitting._rig import CantileverRig, TubeModel
+from fitting._bench import effects as fx
+from fitting._bench.rig import CantileverRig, TubeModel
 
 EI, PRESSURE, RADIUS, LENGTH = 200.0, 2e4, 0.075, 0.8
 DEFLECTIONS = np.array([0.002, 0.05, 0.12])

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import fitting as ft
-from fitting import _calibrate
-from jaxtube._cli import main
+from fitting._calibrate import problem as _calibrate
+from fitting._cli import main
 
 DATA = Path(__file__).parent / "data" / "calibration_spline.csv"
 ROOT = Path(__file__).resolve().parents[1]

@@ -15,7 +15,7 @@ residual of 4.9e-6 N m (0.001 % of ``M_w``), and the root moment equals ``F L``,
 geometric nonlinearity is lost (7e-5 relative). It is a knife edge: it needs the step to
 land on the onset to rounding, which happens with the specimen traced (as in every fit and
 sweep) at some radii and not at others. The generic sweep route starts its wrinkling
-iteration at this load (``fitting/_sweep.py``); the planar route is not affected.
+iteration at this load (``fitting/_sweep/sweep.py``); the planar route is not affected.
 """
 
 import equinox as eqx
@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from fitting._rig import DOWN, CantileverRig, TubeModel
+from fitting._bench.rig import DOWN, CantileverRig, TubeModel
 
 
 @pytest.mark.xfail(strict=True, reason="false convergence at the tension-field law's "

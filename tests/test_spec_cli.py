@@ -15,8 +15,15 @@ import numpy as np
 import pytest
 
 import jaxtube._spec as spec_module
+from fitting._cli import main
+from fitting._cli.simulate import (
+    CSV_COLUMNS,
+    OUTPUT_FILES,
+    _failure_lines,
+    _write_csv,
+    write_outputs,
+)
 from jaxtube import DisplacementControl, ForceControl
-from jaxtube._cli import CSV_COLUMNS, OUTPUT_FILES, _failure_lines, _write_csv, main, write_outputs
 from jaxtube._plot import deformed_shape_figure, force_deflection_figure
 from jaxtube._spec import SpecError, load_spec, parse_spec
 from jaxtube._spec import laws as spec_laws
@@ -458,7 +465,7 @@ def test_failed_steps_end_to_end(tmp_path, monkeypatch, capsys):
     in words on stderr, outputs still written with those steps marked."""
     import jax.numpy as jnp
 
-    import jaxtube._cli as cli_module
+    import jaxtube as cli_module
     from jaxtube import Solution
 
     def fake_solve_path(structure, params, path):

@@ -25,9 +25,9 @@ import pytest
 
 import jaxtube as jt
 from fitting import SelfWeight, SweepSettings, TubeModel, sweep
-from fitting._planar_cantilever import deflection_residual, load_residual
-from fitting._sweep import STATUS_NO_REGIME, STATUS_SOLVER_FAILED, STATUS_UNREACHABLE
-from jaxtube._cli import main
+from fitting._bench.planar import deflection_residual, load_residual
+from fitting._cli import main
+from fitting._sweep.status import STATUS_NO_REGIME, STATUS_SOLVER_FAILED, STATUS_UNREACHABLE
 from tests.helpers import with_tip_force
 
 # Chunks of 2 points: the shape each of 4 devices gets of a sharded chunk of 8, so the

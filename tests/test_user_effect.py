@@ -20,9 +20,9 @@ import pytest
 import fitting as ft
 import jaxtube as jt
 from fitting import continuum
-from fitting._effects import resolve_effect
-from fitting._rig import CantileverRig, TubeModel
-from jaxtube._cli import main
+from fitting._bench.effects import resolve_effect
+from fitting._bench.rig import CantileverRig, TubeModel
+from fitting._cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 EFFECT = f"{ROOT / 'experiments' / 'effects' / 'tip_mass.py'}:TipMass"

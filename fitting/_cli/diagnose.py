@@ -1,4 +1,4 @@
-"""``jaxtube diagnose`` and ``jaxtube demo`` (registered by :mod:`jaxtube._cli`).
+"""``jaxtube diagnose`` and ``jaxtube demo`` (registered by :mod:`fitting._cli.main`).
 
 ``jaxtube diagnose DATA.csv --out DIR [--effect NAME|FILE.py:Class ...]``: the whole loop of
 :func:`fitting.diagnose` (baseline fit with the paper scaling, the comparison and where it
@@ -28,18 +28,27 @@ marked); 2 bad input (nothing written).
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from importlib import resources
 from pathlib import Path
 
-from jaxtube._cli import positive_float, positive_int, write_directory
-
-from ._calibrate import FitError
-from ._commands import _pivots, load_input
-from ._effects import resolve_effect
-from ._scaling import PivotScaling
+from .._bench.effects import resolve_effect
+from .._bench.rig import DEFAULT_SEGMENTS, CantileverRig
+from .._bench.scaling import PivotScaling
+from .._calibrate.problem import FitError
+from .._diagnose import ranking as _diagnose
+from .._diagnose.report import diagnosis_report
+from .._figures.plots import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
+from .._json import write_json
+from .common import (
+    add_data_argument,
+    load_input,
+    pivot_counts,
+    positive_float,
+    positive_int,
+    write_directory,
+)
 
 DEMO_DATA = "demo_hidden_effect.csv"
 #: What the bundled demo dataset hides (jaxtube/data/README.md); printed after the verdict.
@@ -53,8 +62,7 @@ def add_diagnose(subparsers) -> None:
         description="Fit the bending law, compare with the measurements, rank candidate "
                     "effects (score tests, refits, BIC, cross-validation), add the "
                     "significant ones one at a time and report before/after.")
-    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
-                                                "radius_m,length_m,deflection_mm,force_N)")
+    add_data_argument(parser)
     _add_common(parser, default_out=None)
     parser.set_defaults(run=run_diagnose)
 
@@ -80,7 +88,7 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--noise-N", type=positive_float, default=None,
                         help="force noise standard deviation [N] (default: estimated from "
                              "the scatter of the data, without a model)")
-    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
                         help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
     parser.add_argument("--segments", type=positive_int, default=None,
                         help="rigid segments of the model tube (default 12)")
@@ -101,9 +109,6 @@ def run_demo(args) -> int:
 
 
 def run_diagnose(args) -> int:
-    from . import _diagnose
-    from ._rig import DEFAULT_SEGMENTS, CantileverRig
-
     started = time.perf_counter()
     data = load_input(args)
     if data is None:
@@ -144,8 +149,6 @@ def run_diagnose(args) -> int:
 
 
 def _writers(diagnosis, document, report) -> dict:
-    from ._figures import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
-
     models = [("baseline", diagnosis.baseline)] + [(s.added, s.fit) for s in diagnosis.steps]
     figures = {}
     for k, (label, result) in enumerate(models):
@@ -164,69 +167,7 @@ def _writers(diagnosis, document, report) -> dict:
     parameters = diagnosis.final.to_json()
     writers = {name: (lambda path, f=figure: f.savefig(path, dpi=110))
                for name, figure in figures.items()}
-    writers["diagnosis.json"] = lambda path: path.write_text(
-        json.dumps(document, indent=2, allow_nan=False) + "\n")
-    writers["parameters.json"] = lambda path: path.write_text(
-        json.dumps(parameters, indent=2, allow_nan=False) + "\n")
+    writers["diagnosis.json"] = lambda path: write_json(path, document)
+    writers["parameters.json"] = lambda path: write_json(path, parameters)
     writers["report.txt"] = lambda path: path.write_text(report + "\n")
     return writers
-
-
-def _ranking_lines(rows) -> list[str]:
-    lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'RMSE [N]':>10}{'ΔBIC':>10}"
-             f"{'CV RMSE [N]':>13}{'unabsorbed':>12}  significant"]
-    for row in rows:
-        lines.append(f"  {row.effect:<20}{row.score_statistic:>10.3g}{row.score_p_value:>10.2g}"
-                     f"{row.rmse_N:>10.4g}{row.delta_bic:>10.1f}{row.cv_rmse_N:>13.4g}"
-                     f"{row.unabsorbed_share:>12.1%}  "
-                     + ("yes" if row.significant else "no: " + "; ".join(row.reasons)))
-    return lines
-
-
-def diagnosis_report(diagnosis) -> str:
-    """The before/after table, the rankings, where the baseline fails and the verdict."""
-    lines = []
-    base = diagnosis.baseline_comparison
-    source = "given" if diagnosis.noise_given else "estimated from the data, model-free"
-    lines.append(f"noise: {diagnosis.noise:.4g} N ({source})")
-    lines.append("(unabsorbed: the share of a candidate's effect on the curves that refitting "
-                 "the current model's parameters cannot reproduce)")
-    lines.append("")
-    lines.append("baseline (paper scaling, no effect): " + base.verdict.words)
-    worst = base.worst_groups(3)
-    lines.append("  worst groups: " + "; ".join(f"{g.quantity} {g.label}: RMSE {g.rmse_N:.3g} "
-                                               f"N, bias {g.bias_N:+.3g} N" for g in worst))
-    for k, step in enumerate(diagnosis.steps):
-        lines.append("")
-        lines.append(f"step {k + 1}: candidates against the current model, best first -> "
-                     f"add {step.added}")
-        lines += _ranking_lines(step.candidates)
-    if diagnosis.final_candidates:
-        lines.append("")
-        lines.append(f"final ranking ({diagnosis.stop_reason}):")
-        lines += _ranking_lines(diagnosis.final_candidates)
-    lines.append("")
-    lines.append(f"{'model':<34}{'RMSE [N]':>10}{'max |err| [N]':>15}{'bias [N]':>10}"
-                 f"{'CV RMSE [N]':>13}  residuals")
-    models = [("baseline", diagnosis.baseline_comparison, diagnosis.baseline_cv_rmse_N)]
-    added = []
-    for step in diagnosis.steps:
-        added.append(step.added)
-        models.append(("+ " + " + ".join(added), step.comparison, step.candidates[0].cv_rmse_N))
-    for label, comparison, cv in models:
-        lines.append(f"{label:<34}{comparison.rmse_N:>10.4g}{comparison.max_error_N:>15.4g}"
-                     f"{comparison.bias_N:>10.3g}{cv:>13.4g}  "
-                     + ("systematic" if comparison.verdict.systematic else "noise"))
-    lines.append(f"{'noise':<34}{diagnosis.noise:>10.4g}")
-    lines.append("")
-    lines.append(f"{'curve':<18}{'p [bar]':>8}{'r [mm]':>8}{'L [m]':>7}{'baseline':>10}"
-                 f"{'final':>9}  RMSE [N]")
-    for first, last in zip(base.curves, diagnosis.final_comparison.curves):
-        lines.append(f"{first['curve']:<18}{first['pressure_bar']:>8.3g}"
-                     f"{first['radius_m'] * 1e3:>8.3g}{first['length_m']:>7.3g}"
-                     f"{first['rmse_N']:>10.4g}{last['rmse_N']:>9.4g}")
-    lines.append("")
-    lines.append("verdict: " + (", ".join(diagnosis.verdict) or "nothing is missing"))
-    for sentence in diagnosis.statements:
-        lines.append("  - " + sentence)
-    return "\n".join(lines)

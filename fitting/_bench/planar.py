@@ -89,9 +89,11 @@ from jax import Array
 
 import jaxtube as jt
 
-RESULT_CONVERGED = 0
-RESULT_NOT_CONVERGED = 1
-RESULT_NON_FINITE = 3
+from .._codes import code
+
+RESULT_CONVERGED = code(jt.RESULTS.successful)
+RESULT_NOT_CONVERGED = code(jt.RESULTS.max_steps_reached)
+RESULT_NON_FINITE = code(jt.RESULTS.nonfinite)
 
 #: Largest change of one joint rotation in one Newton step [rad].
 MAX_ROTATION_STEP = 0.5

@@ -1,4 +1,4 @@
-"""``jaxtube fit`` and ``jaxtube predict`` (registered by :mod:`jaxtube._cli`).
+"""``jaxtube fit`` and ``jaxtube predict`` (registered by :mod:`fitting._cli.main`).
 
 ``jaxtube fit DATA.csv --out DIR``: fit the bending law's pivot scaling to every curve of
 the measurement file (format in :mod:`fitting._data`), print the parameter table with
@@ -8,7 +8,8 @@ standard errors, identifiability notes and per-curve / overall RMSE, and write i
 ``path/to/file.py:ClassName`` (a :class:`fitting.Effect` subclass).
 
 - ``parameters.json``: the fitted law and its uncertainty (format in
-  :mod:`fitting._result`); ``jaxtube simulate --params`` and ``jaxtube predict`` load it;
+  :mod:`fitting._calibrate.result`); ``jaxtube simulate --params`` and ``jaxtube predict``
+  load it;
 - ``fit.png``: fitted against measured curves with 95 % bands, and residuals;
 - ``curves.csv``: ``curve,deflection_mm,force_N,model_force_N,residual_N,worst_regime``.
 
@@ -31,25 +32,25 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtube._cli import positive_float, positive_int, write_directory
-
-from ._calibrate import FitError, FitOptions, Prior, fit
-from ._data import DataError, load_measurements
-from ._effects import resolve_effect
-from ._result import Z_95, load_law
-from ._scaling import FORMS, PivotScaling
-
-
-def _pivots(text: str) -> tuple[int, int, int]:
-    try:
-        counts = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        counts = ()
-    if len(counts) != 3 or min(counts) < 1:
-        raise argparse.ArgumentTypeError(
-            f"expected three positive integers like 2,2,1 (unwrinkled, wrinkled, collapsed "
-            f"pivots), found {text!r}")
-    return counts
+from .._bench.effects import resolve_effect
+from .._bench.rig import DEFAULT_SEGMENTS, CantileverRig
+from .._bench.scaling import FORMS, PivotScaling
+from .._calibrate.fit import fit
+from .._calibrate.parameters_file import load_law, predict_from_document
+from .._calibrate.problem import FitError, FitOptions, Prior
+from .._calibrate.result import Z_95
+from .._data import unit_factor
+from .._figures.plots import fit_figure, prediction_figure
+from .._json import write_json
+from .common import (
+    add_data_argument,
+    bad_output_directory,
+    load_input,
+    pivot_counts,
+    positive_float,
+    positive_int,
+    write_directory,
+)
 
 
 def _assignment(text: str) -> tuple[str, float]:
@@ -76,12 +77,11 @@ def add_fit(subparsers) -> None:
         description="Fit the pivot scaling of the three-regime spline law to every measured "
                     "force-deflection curve at once (Levenberg-Marquardt through the "
                     "equilibrium solver), with standard errors and 95 % bands.")
-    parser.add_argument("data", type=Path, help="measurement CSV (curve,setup,pressure_bar,"
-                                                "radius_m,length_m,deflection_mm,force_N)")
+    add_data_argument(parser)
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--form", choices=FORMS, default="paper",
                         help="pivot scaling: paper A (p r^3)^B, or separate A p^B r^C")
-    parser.add_argument("--pivots", type=_pivots, default=(1, 1, 1),
+    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
                         help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
     parser.add_argument("--segments", type=positive_int, default=None,
                         help="rigid segments of the model tube (default 12)")
@@ -118,32 +118,11 @@ def add_predict(subparsers) -> None:
     parser.set_defaults(run=run_predict)
 
 
-def _bad_out(out: Path) -> bool:
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
-        return True
-    return False
-
-
-def load_input(args):
-    """The measurements of ``args.data`` for a command writing into ``args.out``, or None
-    after printing why not (bad output directory, bad data: exit code 2, nothing written)."""
-    if _bad_out(args.out):
-        return None
-    try:
-        return load_measurements(args.data)
-    except DataError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return None
-
-
 def run_fit(args) -> int:
     started = time.perf_counter()
     data = load_input(args)
     if data is None:
         return 2
-    from ._rig import DEFAULT_SEGMENTS, CantileverRig
-
     try:
         scaling = PivotScaling(form=args.form, pivots_per_regime=args.pivots)
         options = FitOptions(noise_N=args.noise_N, fixed=dict(args.fix),
@@ -159,14 +138,9 @@ def run_fit(args) -> int:
     except (ValueError, FitError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    from ._figures import fit_figure
-
     figure = fit_figure(result)
     document = result.to_json()
     document["wall_time_s"] = round(time.perf_counter() - started, 3)
-
-    def write_json(path):
-        path.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n")
 
     def write_curves(path):
         with open(path, "w", newline="") as handle:
@@ -179,7 +153,8 @@ def run_fit(args) -> int:
                     writer.writerow([curve.name, f"{u * 1e3:.6g}", f"{f:.6g}", f"{m:.6g}",
                                      f"{m - f:.6g}", int(w)])
 
-    write_directory(args.out, {"parameters.json": write_json, "curves.csv": write_curves,
+    write_directory(args.out, {"parameters.json": lambda path: write_json(path, document),
+                               "curves.csv": write_curves,
                                "fit.png": lambda path: figure.savefig(path, dpi=120)})
     print(fit_report(result))
     print(f"wrote parameters.json, curves.csv, fit.png to {args.out}")
@@ -208,7 +183,7 @@ def fit_report(result) -> str:
 
 
 def run_predict(args) -> int:
-    if _bad_out(args.out):
+    if bad_output_directory(args.out):
         return 2
     try:
         load_law(args.params)  # validates the file with clear errors
@@ -216,12 +191,10 @@ def run_predict(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    from ._figures import prediction_figure
-    from ._result import predict_from_document
-
     deflection = np.linspace(args.max_deflection_mm / args.points, args.max_deflection_mm,
                              args.points) * 1e-3
-    pressure, radius, length = args.pressure_bar * 1e5, args.radius_m, args.length_m
+    pressure = args.pressure_bar * unit_factor("pressure", "bar")
+    radius, length = args.radius_m, args.length_m
     try:
         force, sd = predict_from_document(document, pressure, radius, length, deflection)
     except (ValueError, KeyError) as error:

@@ -1,6 +1,6 @@
 """Statistics of candidate effects at a fitted model: the score test at the null, chi^2,
 the linearised leave-one-curve-out error, and how much of a candidate's effect the model's
-fitted parameters can absorb (formulas and sources in :mod:`fitting._diagnose`).
+fitted parameters can absorb (formulas and sources in :mod:`fitting._diagnose.ranking`).
 
 All work on the residuals and the Jacobian of a fit's last evaluation (``FitResult.residual``
 and ``FitResult.jacobian``, every coordinate's column): no new evaluation, no compilation.
@@ -14,7 +14,7 @@ import math
 import numpy as np
 import scipy.stats
 
-from ._result import FitResult
+from .._calibrate.result import FitResult
 
 
 def parameter_names(effect) -> tuple[str, ...]:

@@ -1,18 +1,8 @@
-"""The ``jaxtube`` command line.
+"""``jaxtube simulate`` (registered by :mod:`fitting._cli.main`).
 
-Subcommands (one ``_add_<name>`` function registers each; add a new one to
-``_SUBCOMMANDS``):
-
-- ``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
-  in :mod:`jaxtube._spec`), compile and run the load path, and write ``path.csv``,
+``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
+  in :mod:`jaxtube.load_spec`), compile and run the load path, and write ``path.csv``,
   ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
-- ``jaxtube fit DATA.csv --out DIR`` / ``jaxtube predict ...``: calibration
-  (:mod:`fitting._commands`).
-- ``jaxtube diagnose DATA.csv --out DIR [--effect FILE.py:Class]`` / ``jaxtube demo``: which
-  physical effect the model lacks (:mod:`fitting._diagnose_cli`).
-- ``jaxtube sweep ...``: a law over a pressure x radius x length grid
-  (:mod:`fitting._sweep_command`).
-
 Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
 are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).
 
@@ -40,15 +30,9 @@ reasons, the last converged step (force, displacement), peak force, wall times.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import functools
-import json
-import math
-import os
-import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -56,12 +40,11 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from ._controls import DisplacementControl
-from ._equilibrium import Solution
-from ._mechanics import initial_state, reference_geometry, spring_joints
-from ._path import solve_path
-from ._solver import RESULT_MESSAGES
-from ._spec import LoadedSpec, SpecError, load_spec
+import jaxtube as jt
+
+from .._calibrate.parameters_file import load_law
+from .._json import finite_or_none, write_json
+from .common import bad_output_directory, positive_int, write_directory
 
 OUTPUT_FILES = ("path.csv", "force_deflection.png", "deformed_shape.png", "summary.json")
 CSV_COLUMNS = (
@@ -77,29 +60,7 @@ CSV_COLUMNS = (
 # ------------------------------------------------------------------------------------------
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer > 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
-    return value
-
-
-def _add_simulate(subparsers) -> None:
+def add_simulate(subparsers) -> None:
     parser = subparsers.add_parser(
         "simulate", help="run the load path of a TOML spec and write results",
         description="Load a TOML structure spec, follow its load path and write path.csv, "
@@ -116,62 +77,6 @@ def _add_simulate(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="print only problems (failed steps, errors)")
     parser.set_defaults(run=_simulate)
-
-
-def _add_fit(subparsers) -> None:
-    from fitting._commands import add_fit
-
-    add_fit(subparsers)
-
-
-def _add_predict(subparsers) -> None:
-    from fitting._commands import add_predict
-
-    add_predict(subparsers)
-
-
-def _add_diagnose(subparsers) -> None:
-    from fitting._diagnose_cli import add_diagnose
-
-    add_diagnose(subparsers)
-
-
-def _add_demo(subparsers) -> None:
-    from fitting._diagnose_cli import add_demo
-
-    add_demo(subparsers)
-
-
-def _add_sweep(subparsers) -> None:
-    from fitting._sweep_command import add_sweep
-
-    add_sweep(subparsers)
-
-
-_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo, _add_sweep)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The ``jaxtube`` argument parser, with one subparser per subcommand."""
-    from . import __version__
-
-    parser = argparse.ArgumentParser(
-        prog="jaxtube", description="Differentiable simulator of inflatable tube structures.")
-    parser.add_argument("--version", action="version", version=f"jaxtube {__version__}")
-    subparsers = parser.add_subparsers(title="subcommands", metavar="COMMAND")
-    for add in _SUBCOMMANDS:
-        add(subparsers)
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``jaxtube`` command; returns the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not hasattr(args, "run"):
-        parser.print_help(sys.stderr)
-        return 2
-    return args.run(args)
 
 
 # ------------------------------------------------------------------------------------------
@@ -199,18 +104,15 @@ def _simulate(args) -> int:
     report = _Reporter(args.quiet)
     started = time.perf_counter()
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        report.problem(f"error: --out {out} exists and is not a directory")
+    if bad_output_directory(out):
         return 2
     try:
-        spec = load_spec(args.spec, steps=args.steps)
-    except SpecError as error:
+        spec = jt.load_spec(args.spec, steps=args.steps)
+    except jt.SpecError as error:
         report.problem(f"error: invalid spec\n{error}")
         return 2
     structure, params, path, meta = spec
     if args.params is not None:
-        from fitting import load_law
-
         try:
             law = load_law(args.params)
         except ValueError as error:
@@ -231,7 +133,7 @@ def _simulate(args) -> int:
     loaded = time.perf_counter()
 
     report.progress("compiling the solver (the first run of a structure takes a while) ...")
-    solver = jax.jit(functools.partial(solve_path, structure))
+    solver = jax.jit(functools.partial(jt.solve_path, structure))
     compiled = solver.lower(params, path).compile()
     compiled_at = time.perf_counter()
     report.progress(f"compiled in {compiled_at - loaded:.1f} s; solving {meta.steps} steps ...")
@@ -261,21 +163,12 @@ def _vector_text(vector) -> str:
     return "(" + ", ".join(f"{float(x):.3g}" for x in np.asarray(vector) + 0.0) + ")"
 
 
-def _joint_nodes(spec: LoadedSpec) -> tuple[int, ...]:
-    """Node index of every spring joint, in the order of ``Solution.joint_regime``.
-
-    The joint list is static, so an abstract evaluation (no compilation) is enough.
-    """
-    structure, params = spec.structure, spec.params
-
-    def joints():
-        geometry = reference_geometry(structure, params)
-        return spring_joints(structure, geometry, initial_state(structure, params))
-
-    return jax.eval_shape(joints).node
+def _joint_nodes(spec: jt.LoadedSpec) -> tuple[int, ...]:
+    """Node index of every spring joint, in the order of ``Solution.joint_regime``."""
+    return spec.structure.spring_joint_topology().node
 
 
-def path_table(spec: LoadedSpec, solution: Solution, joint_node) -> dict[str, np.ndarray]:
+def path_table(spec: jt.LoadedSpec, solution: jt.Solution, joint_node) -> dict[str, np.ndarray]:
     """Per-step results as numpy columns (names as in ``CSV_COLUMNS``; SI converted to mm).
 
     Under force control the control displacement is the path node's displacement along
@@ -287,7 +180,7 @@ def path_table(spec: LoadedSpec, solution: Solution, joint_node) -> dict[str, np
     moved = np.asarray(solution.node_position)[:, node] - reference  # [K, 3]
     load_factor = np.asarray(solution.load_factor, dtype=float).reshape(-1)
     steps = moved.shape[0]
-    if isinstance(spec.path, DisplacementControl):
+    if isinstance(spec.path, jt.DisplacementControl):
         displacement = np.asarray(solution.control_displacement, dtype=float)
         force = np.asarray(solution.control_force, dtype=float)
     else:
@@ -317,7 +210,7 @@ def path_table(spec: LoadedSpec, solution: Solution, joint_node) -> dict[str, np
         "converged": converged,
         "iterations": np.asarray(solution.iterations, dtype=int).reshape(-1),
         "residual": np.asarray(solution.residual, dtype=float).reshape(-1),
-        "status": np.array([RESULT_MESSAGES.get(int(c), f"unknown result code {int(c)}")
+        "status": np.array([jt.RESULT_MESSAGES.get(int(c), f"unknown result code {int(c)}")
                             for c in codes]),
     }
 
@@ -351,14 +244,7 @@ def _failure_lines(table) -> list[str]:
     return lines
 
 
-def _json_number(value):
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def _summary(args, spec: LoadedSpec, table, times) -> dict:
-    from . import __version__
-
+def _summary(args, spec: jt.LoadedSpec, table, times) -> dict:
     meta = spec.metadata
     converged = table["converged"]
     done = np.flatnonzero(converged)
@@ -366,10 +252,10 @@ def _summary(args, spec: LoadedSpec, table, times) -> dict:
     if done.size:
         k = int(done[-1])
         final = {"step": int(table["step"][k]),
-                 "load_factor": _json_number(table["load_factor"][k]),
-                 "displacement_mm": _json_number(table["control_displacement_mm"][k]),
-                 "force_N": _json_number(table["control_force_N"][k]),
-                 "max_moment_Nm": _json_number(table["max_moment_Nm"][k]),
+                 "load_factor": finite_or_none(table["load_factor"][k]),
+                 "displacement_mm": finite_or_none(table["control_displacement_mm"][k]),
+                 "force_N": finite_or_none(table["control_force_N"][k]),
+                 "max_moment_Nm": finite_or_none(table["max_moment_Nm"][k]),
                  "worst_regime": int(table["worst_regime"][k])}
     forces = np.where(converged, table["control_force_N"], np.nan)
     peak = int(np.nanargmax(np.abs(forces))) if np.any(np.isfinite(forces)) else None
@@ -377,7 +263,7 @@ def _summary(args, spec: LoadedSpec, table, times) -> dict:
         "spec": str(Path(args.spec).resolve()),
         "name": meta.name,
         "description": meta.description,
-        "jaxtube_version": __version__,
+        "jaxtube_version": jt.__version__,
         "control": meta.control,
         "control_node": meta.control_node_ref,
         "control_direction": meta.control_direction.tolist(),
@@ -385,25 +271,23 @@ def _summary(args, spec: LoadedSpec, table, times) -> dict:
         "converged_steps": int(converged.sum()),
         "failed_steps": [
             {"step": int(table["step"][k]), "reason": str(table["status"][k]),
-             "residual": _json_number(table["residual"][k])}
+             "residual": finite_or_none(table["residual"][k])}
             for k in np.flatnonzero(~converged)],
         "final": final,
         "final_force_N": None if final is None else final["force_N"],
         "final_displacement_mm": None if final is None else final["displacement_mm"],
-        "peak_force_N": None if peak is None else _json_number(forces[peak]),
+        "peak_force_N": None if peak is None else finite_or_none(forces[peak]),
         "peak_force_step": None if peak is None else int(table["step"][peak]),
         "wall_time_s": {key: round(value, 3) for key, value in times.items()},
         "outputs": list(OUTPUT_FILES),
     }
 
 
-def _figures(spec: LoadedSpec, solution: Solution, table, joint_node) -> dict:
-    from ._plot import deformed_shape_figure, force_deflection_figure
-
+def _figures(spec: jt.LoadedSpec, solution: jt.Solution, table, joint_node) -> dict:
     meta, params = spec.metadata, spec.params
     label = meta.name or Path(meta.source).stem
     direction = _vector_text(meta.control_direction)
-    deflection = force_deflection_figure(
+    deflection = jt.force_deflection_figure(
         table["control_displacement_mm"], table["control_force_N"], table["worst_regime"],
         table["converged"], title=f"{label}: {meta.control} control of "
                                   f"{meta.control_node_ref}",
@@ -418,7 +302,7 @@ def _figures(spec: LoadedSpec, solution: Solution, table, joint_node) -> dict:
     distributed = (factors[:, None, None] * np.asarray(params.line_load)[None]
                    + (np.asarray(params.mass_per_length)[:, None]
                       * np.asarray(params.gravity)[None])[None])
-    shape = deformed_shape_figure(
+    shape = jt.deformed_shape_figure(
         spec.structure, np.asarray(params.node_position), np.asarray(solution.node_position),
         table["converged"], joint_node=joint_node, joint_regime=np.asarray(
             solution.joint_regime), point_force=point_force, control=control,
@@ -450,41 +334,13 @@ def write_outputs(out: Path, table, figures: dict, summary: dict, started: float
         data = dict(summary)
         data["wall_time_s"] = dict(data["wall_time_s"],
                                    total_s=round(time.perf_counter() - started, 3))
-        with open(path, "w") as file:
-            json.dump(data, file, indent=2, allow_nan=False)
-            file.write("\n")
+        write_json(path, data)
 
     writers = {"path.csv": lambda path: _write_csv(path, table)}
     for name, figure in figures.items():
         writers[name] = lambda path, figure=figure: figure.savefig(path, dpi=120)
     writers["summary.json"] = write_summary
     write_directory(out, writers)
-
-
-def write_directory(out: Path, writers: dict) -> None:
-    """Write files atomically: each ``writers[name](path)`` writes into a temporary directory
-    next to ``out``, which is then renamed to ``out`` (or, if ``out`` exists, each file is
-    moved over its namesake). A failure leaves ``out`` as it was: nothing half-written."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"--out {out} exists and is not a directory")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
-    try:
-        for name, write in writers.items():
-            write(staging / name)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(staging, 0o777 & ~umask)
-        if out.is_dir():
-            for name in sorted(p.name for p in staging.iterdir()):
-                os.replace(staging / name, out / name)
-            staging.rmdir()
-        else:
-            os.replace(staging, out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
 
 
 def _print_summary(report: _Reporter, table, summary, out: Path) -> None:
@@ -512,6 +368,3 @@ def _print_summary(report: _Reporter, table, summary, out: Path) -> None:
     lines.append(f"wrote {', '.join(OUTPUT_FILES)} to {out}")
     report.result("\n".join(lines))
 
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

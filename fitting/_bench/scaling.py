@@ -32,7 +32,7 @@ import numpy as np
 
 import jaxtube as jt
 
-from ._data import MeasuredData
+from .._data import MeasuredData
 
 FORMS = ("paper", "separate")
 COORDINATES = ("kappa", "M")

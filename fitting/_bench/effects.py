@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
+from pathlib import Path
 from typing import ClassVar
 
 import equinox as eqx
@@ -268,8 +270,6 @@ def resolve_effect(text: str) -> type[Effect]:
         raise ValueError(f"effect {text!r}: expected one of "
                          f"{sorted(BUILT_IN_EFFECTS) + sorted(MODEL_EXTENSIONS)} or "
                          "path/to/file.py:ClassName")
-    from pathlib import Path
-
     file = Path(path)
     if not file.is_file():
         raise ValueError(f"effect {text!r}: file {file} not found")
@@ -278,9 +278,6 @@ def resolve_effect(text: str) -> type[Effect]:
 
 @functools.lru_cache(maxsize=32)
 def _user_effect(path: str, modified: int, class_name: str) -> type[Effect]:
-    import importlib.util
-    from pathlib import Path
-
     file = Path(path)
     text = f"{path}:{class_name}"
     spec = importlib.util.spec_from_file_location(f"jaxtube_user_effect_{file.stem}", file)

@@ -8,7 +8,11 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from ._result import Z_95, FitResult
+from .._calibrate.result import Z_95, FitResult
+from .._data import unit_factor
+from .._diagnose.compare import EXTENT_EDGES, point_table
+
+PA_PER_BAR = unit_factor("pressure", "bar")
 
 
 def band_grid(result: FitResult) -> np.ndarray:
@@ -48,7 +52,7 @@ def fit_figure(result: FitResult, title: str | None = None) -> Figure:
         top.plot(u_mm, force[c], color="C0", lw=1.6, label="model")
         top.plot(curve.deflection * 1e3, curve.force, "o", ms=3.5, color="k",
                  label="measured")
-        top.set_title(f"{curve.name}: {curve.pressure / 1e5:.3g} bar, r = "
+        top.set_title(f"{curve.name}: {curve.pressure / PA_PER_BAR:.3g} bar, r = "
                       f"{curve.radius * 1e3:.3g} mm, L = {curve.length:.3g} m", fontsize=9)
         top.set_ylabel("tip force [N]")
         top.grid(alpha=0.3)
@@ -97,8 +101,6 @@ def where_it_fails_figure(result: FitResult, comparison, title: str) -> Figure:
     """Residuals against deflection for every curve, then grouped by pressure, radius,
     length, the model's regime at each point and the wrinkled extent: each group's points,
     its RMSE (bar) and bias (diamond), against the +-2 sigma noise band."""
-    from ._compare import point_table
-
     table = point_table(result)
     names = [curve.name for curve in result.problem.data]
     figure = Figure(figsize=(15, 8.4), layout="constrained")
@@ -146,8 +148,6 @@ def where_it_fails_figure(result: FitResult, comparison, title: str) -> Figure:
 
 
 def _extent_bin(extent: np.ndarray, low: float) -> np.ndarray:
-    from ._compare import EXTENT_EDGES
-
     i = list(EXTENT_EDGES).index(low)
     return (extent >= EXTENT_EDGES[i]) & (extent < EXTENT_EDGES[i + 1])
 

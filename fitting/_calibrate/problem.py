@@ -5,7 +5,7 @@ All curves are fitted in one joint weighted least-squares problem in force,
     minimise  sum_i w_i ((F_model(u_i; theta) - F_i) / sigma)^2  (+ prior terms),
 
 with ``F_model`` the jaxtube equilibrium force at the measured tip deflection ``u_i``
-(displacement control, so plateau points count; :mod:`fitting._rig`). The residual
+(displacement control, so plateau points count; :mod:`fitting._bench.rig`). The residual
 Jacobian comes from forward-mode derivatives through the equilibrium solve, which jaxtube
 gives by the implicit function theorem (never by differentiating the Newton loop).
 
@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from collections.abc import Mapping, Sequence
 from functools import partial
 
@@ -40,9 +39,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._data import MeasuredData
-from ._rig import CantileverRig, CurveBatch, TubeModel, batch_curves, unpad
-from ._scaling import PivotScaling, initial_vector, reference_specimen
+from .._bench.rig import CantileverRig, CurveBatch, TubeModel, batch_curves, unpad
+from .._bench.scaling import PivotScaling, initial_vector, reference_specimen
+from .._data import MeasuredData
+from .outcome import FitOutcome, ending
 
 # Default bounds of the exponents B and C (physics: 0 to 3 for p^B r^C; generous), and of
 # each scale A: within a factor SCALE_RANGE of the physics-based first guess. Coordinates
@@ -388,12 +388,12 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
     jtj = jac.T @ jac
     mu = 1e-3  # dimensionless: the damping term is mu * diag(J^T J) (Marquardt scaling)
     nu = 2.0
-    message, converged = "maximum number of iterations reached", False
+    outcome = FitOutcome.iterations_exhausted
     iteration = 0
     for iteration in range(1, options.max_iterations + 1):
         g = jac.T @ r
         if float(np.max(np.abs(g))) <= options.gtol * max(1.0, cost):
-            message, converged = "gradient below tolerance", True
+            outcome = FitOutcome.gradient_small
             break
         diag = np.maximum(np.diag(jtj), 1e-12 * max(float(np.max(np.diag(jtj))), 1e-300))
         accepted = False
@@ -418,7 +418,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
                 if not mu < 1e16:
                     break
         if not accepted:
-            message, converged = "no further decrease possible (damping exhausted)", True
+            outcome = FitOutcome.damping_exhausted
             break
         relative_change = (cost - cost_new) / max(cost, 1e-300)
         cost_before = cost
@@ -434,9 +434,9 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         # (it also ends slow drifts along directions the data do not determine).
         negligible = 2.0 * (cost_before - cost) <= options.chi2_tol
         if relative_change <= options.ftol or small_step or negligible:
-            message, converged = ("step below tolerance" if small_step else
-                                  "decrease of the loss below tolerance"), True
+            outcome = (FitOutcome.step_small if small_step else FitOutcome.decrease_small)
             break
+    message, converged = ending(outcome)
     return x, cost, dict(message=message, converged=converged, iterations=iteration,
                          evaluations=counts["jacobian"],
                          r=r, jac=jac, full_jacobian=full, prediction=pred, robust=robust)
@@ -446,75 +446,6 @@ def _rmse(problem: FitProblem, prediction) -> float:
     mask = problem.batch.mask
     err = (np.asarray(prediction.force) - problem.batch.force)[mask]
     return float(np.sqrt(np.mean(err**2)))
-
-
-def fit(data: MeasuredData, scaling: PivotScaling | None = None,
-        rig: CantileverRig | None = None, options: FitOptions | None = None,
-        initial: np.ndarray | None = None, effects: tuple = ()):
-    """Fit the pivot scaling (and the parameters of ``effects``, :class:`fitting.Effect`
-    subclasses) to every curve of ``data`` at once; returns a :class:`fitting.FitResult`
-    (estimates, uncertainties, identifiability, RMSE, report)."""
-    options = options or FitOptions()
-    _check_options(options)
-    problem = make_problem(data, scaling, rig, options, initial, effects)
-    return fit_problem(problem, options)
-
-
-def _check_options(options: FitOptions) -> None:
-    if options.loss not in ("linear", "huber"):
-        raise ValueError(f"loss must be 'linear' or 'huber', got {options.loss!r}")
-    if options.multistart < 1:
-        raise ValueError(f"multistart must be >= 1, got {options.multistart}")
-
-
-def fit_problem(problem: FitProblem, options: FitOptions | None = None, description: str =
-                "fit (LM iterations)"):
-    """Levenberg-Marquardt on a set-up :class:`FitProblem` from its ``base`` vector (the free
-    coordinates start there; e.g. ``problem.with_free(names, previous.vector)`` refits from
-    a previous optimum with more coordinates free, on the same compiled model)."""
-    from ._result import FitResult
-
-    options = options or FitOptions()
-    _check_options(options)
-    x0 = problem.base[np.asarray(problem.free_index)]
-    rng = np.random.default_rng(options.seed)
-    starts = [x0] + [
-        x0 + np.where(np.array([n.endswith(".A") for n in problem.free_names]),
-                      0.5 * rng.standard_normal(x0.size), 0.2 * rng.standard_normal(x0.size))
-        for _ in range(options.multistart - 1)]
-    bar = None
-    if options.progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=options.max_iterations * len(starts), desc=description,
-                   unit="it", leave=False)
-    t0 = time.perf_counter()
-    best, costs, totals = None, [], {"evaluations": 0, "iterations": 0}
-    try:
-        for start in starts:
-            try:
-                x, cost, report = _levenberg_marquardt(problem, start, options, bar)
-            except FitError:
-                if len(starts) == 1:
-                    raise
-                costs.append(math.inf)
-                continue
-            costs.append(cost)
-            totals["evaluations"] += report["evaluations"]
-            totals["iterations"] += report["iterations"]
-            if best is None or cost < best[1]:
-                best = (x, cost, report)
-    finally:
-        if bar is not None:
-            bar.close()
-    if best is None:
-        raise FitError("every start failed: the equilibrium solves did not converge")
-    x, cost, report = best
-    convergence = Convergence(
-        converged=report["converged"], message=report["message"],
-        iterations=totals["iterations"], evaluations=totals["evaluations"],
-        solver_calls=totals["evaluations"] * len(problem.data),
-        seconds=time.perf_counter() - t0, starts=len(starts), start_costs=tuple(costs))
-    return FitResult.from_optimum(problem, x, report, convergence)
 
 
 def forces_and_sensitivity(problem: FitProblem, free_values, batch_arrays):
@@ -542,5 +473,5 @@ def specimen_arrays(pressure: Sequence[float], radius: Sequence[float],
             np.asarray(deflection, float))
 
 
-__all__ = ["FitError", "FitOptions", "Prior", "Convergence", "estimate_noise", "fit",
-           "fit_problem", "make_problem", "unpad"]
+__all__ = ["FitError", "FitOptions", "Prior", "Convergence", "estimate_noise", "make_problem",
+           "unpad"]

@@ -30,7 +30,8 @@ import numpy as np
 
 import jaxtube as jt
 
-from ._data import MeasuredData
+from .._data import MeasuredData
+from .effects import RigSpecimen, set_clamp_compliance, set_shear_flexibility
 
 #: Segments per tube in the calibration model. With the half-tributary clamp joint a
 #: 12-segment chain is within about 0.1 % of the elastica tip deflection
@@ -41,7 +42,7 @@ DOWN = np.array([0.0, 0.0, -1.0])
 
 
 class TubeModel(eqx.Module):
-    """What a calibration fits: the laws of the tube and the effects (``fitting._effects``).
+    """What a calibration fits: the laws of the tube and the effects (``fitting._bench.effects``).
 
     Attributes:
         bending_law: moment-curvature law of bending (any :class:`jaxtube.AbstractMomentLaw`).
@@ -180,8 +181,6 @@ class CantileverRig:
     def specimen_parameters(self, model: TubeModel, pressure, radius, length):
         """:class:`jaxtube.StructureParameters` of one specimen with the model's laws and
         effects (traceable in all numbers)."""
-        from ._effects import RigSpecimen, set_clamp_compliance, set_shear_flexibility
-
         structure, params = self.template()
         tubes = len(structure.tube_names)
         params = eqx.tree_at(
@@ -226,6 +225,8 @@ class CantileverRig:
         # along +x from 0 to 1; the clamp-spring tube lies behind the clamp, at 0).
         _, unit = self.template()
         x = np.clip(np.asarray(unit.node_position)[:, 0], 0.0, 1.0)
+        # TODO(merge): structure.spring_joint_topology().node (the engine's one derivation of
+        # which joints carry springs) instead of deriving the list again here.
         joints = np.asarray([x[structure.joint_node[s]]
                              for s, spring in enumerate(structure.joint_spring) if spring])
         position = jnp.broadcast_to(jnp.asarray(joints, float), sol.joint_regime.shape)

@@ -31,6 +31,9 @@ import math
 import numpy as np
 import scipy.stats
 
+from .._data import unit_factor
+from .._json import finite_row
+
 REGIME_NAMES = ("unwrinkled", "wrinkled", "collapsed")
 RUNS_ALPHA = 0.01
 CHI2_RATIO_SYSTEMATIC = 2.0
@@ -91,17 +94,12 @@ class Comparison:
         return {"rmse_N": self.rmse_N, "max_error_N": self.max_error_N, "bias_N": self.bias_N,
                 "noise_N": self.noise_N, "noise_given": self.noise_given,
                 "curves": list(self.curves),
-                "verdict": _finite_dict(dataclasses.asdict(self.verdict)),
-                "groups": [_finite_dict(dataclasses.asdict(g)) for g in self.groups]}
+                "verdict": finite_row(dataclasses.asdict(self.verdict)),
+                "groups": [finite_row(dataclasses.asdict(g)) for g in self.groups]}
 
     def worst_groups(self, count: int = 3) -> list[Group]:
         """The groups (any quantity) with the largest RMSE relative to the overall RMSE."""
         return sorted(self.groups, key=lambda g: -g.rmse_N)[:count]
-
-
-def _finite_dict(row: dict) -> dict:
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else
-                list(v) if isinstance(v, tuple) else v) for k, v in row.items()}
 
 
 def point_table(result) -> dict[str, np.ndarray]:
@@ -221,7 +219,8 @@ def compare(result) -> Comparison:
     rows = result.curve_errors()
     residual = np.concatenate([f - c.force for f, c in zip(result.force, result.problem.data)])
     for row, curve in zip(rows, result.problem.data):
-        row.update(pressure_bar=curve.pressure / 1e5, radius_m=curve.radius,
+        row.update(pressure_bar=curve.pressure / unit_factor("pressure", "bar"),
+                   radius_m=curve.radius,
                    length_m=curve.length, points=curve.point_count)
     return Comparison(rmse_N=result.rmse, max_error_N=float(np.max(np.abs(residual))),
                       bias_N=float(np.mean(residual)), noise_N=result.noise,

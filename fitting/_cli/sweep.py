@@ -7,7 +7,7 @@ Ranges are ``START:STOP:N`` (N evenly spaced values, both ends included) or one 
 Laws: ``--params`` (a fitted spline law, :func:`fitting.load_law`), or ``--law
 tension_field --wall-modulus-N-per-m E_t``, ``--law empirical_2011`` (Breukels 2011),
 ``--law linear --bending-stiffness-N-m2 EI``. The quantities are defined in
-:mod:`fitting._sweep`.
+:mod:`fitting._sweep.sweep`.
 
 Outputs in DIR (written atomically; nothing is written on bad input):
 
@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import collections
 import csv
-import json
 import math
 import sys
 import time
@@ -40,7 +39,13 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtube._cli import positive_float, positive_int, write_directory
+import jaxtube as jt
+
+from .._calibrate.parameters_file import load_law
+from .._data import unit_factor
+from .._json import write_json
+from .._sweep.sweep import SweepSettings, sweep
+from .common import bad_output_directory, positive_float, positive_int, write_directory
 
 LAWS = ("tension_field", "empirical_2011", "linear")
 QUANTITIES = (  # (result field, file, title, unit, factor from SI)
@@ -111,11 +116,7 @@ def add_sweep(subparsers) -> None:
 
 def _law(args):
     """The bending law and a description of it, or raise ValueError naming the flag."""
-    import jaxtube as jt
-
     if args.params is not None:
-        from ._result import load_law
-
         return load_law(args.params), f"fitted spline law from {args.params}"
     if args.law != "tension_field" and args.wall_modulus_N_per_m is not None:
         raise ValueError("--wall-modulus-N-per-m is only used with --law tension_field")
@@ -138,8 +139,7 @@ def _law(args):
 def run_sweep(args) -> int:
     started = time.perf_counter()
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
+    if bad_output_directory(out):
         return 2
     if not (math.isfinite(args.tip_load_N) and args.tip_load_N >= 0):
         print(f"error: --tip-load-N must be a finite number >= 0, found {args.tip_load_N:g}",
@@ -150,10 +150,8 @@ def run_sweep(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    from ._sweep import SweepSettings, sweep
-
     radius = args.radius_m if args.radius_m is not None else args.radius_mm * 1e-3
-    pressure = args.pressure_bar * 1e5
+    pressure = args.pressure_bar * unit_factor("pressure", "bar")
     settings = SweepSettings()
     overrides = {"segments": args.segments, "chunk_size": args.chunk_size}
     settings = SweepSettings(**{**{k: getattr(settings, k) for k in
@@ -171,8 +169,7 @@ def run_sweep(args) -> int:
     writers = {"sweep.csv": lambda path: write_csv(path, result, reasons)}
     for name, figure in figures.items():
         writers[name] = lambda path, figure=figure: figure.savefig(path, dpi=120)
-    writers["summary.json"] = lambda path: path.write_text(
-        json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    writers["summary.json"] = lambda path: write_json(path, summary)
     write_directory(out, writers)
     failed = summary["failed_points"]
     print(f"{summary['points']} points in {result.seconds:.1f} s "
@@ -183,11 +180,6 @@ def run_sweep(args) -> int:
         if reason != "ok":
             print(f"{count} point(s): {reason}", file=sys.stderr)
     return 1 if failed else 0
-
-
-def _number(value) -> float | None:
-    value = float(value)
-    return value if math.isfinite(value) else None
 
 
 def _summary(args, result, reasons, law_text: str, seconds: float) -> dict:
@@ -249,6 +241,8 @@ def write_csv(path: Path, result, reasons) -> None:
 def heatmap(result, field: str, title: str, unit: str, factor: float):
     """Figure of ``field`` over (pressure [bar], radius [mm]) per length, with ``p r^3``
     contours [N m] and failed points marked. Expects the ``[P, R, L]`` grid of the CLI."""
+    # Lazy: pyplot (for its colour bars and contour labels) is imported only when a figure
+    # is drawn, with the Agg backend chosen first so no window can open.
     import matplotlib
 
     matplotlib.use("Agg")

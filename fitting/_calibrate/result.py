@@ -22,16 +22,17 @@ Parameters file (JSON, ``format = "jaxtube-fit"``, ``version = 1``)::
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
 import jaxtube as jt
 
-from ._calibrate import (
+from .._bench.rig import unpad
+from .._bench.scaling import COORDINATES, PivotScaling
+from .._json import finite_or_none, finite_row
+from .problem import (
     STRONG_CORRELATION,
     UNIDENTIFIED_SE,
     UNIDENTIFIED_SE_EXPONENT,
@@ -40,8 +41,6 @@ from ._calibrate import (
     forces_and_sensitivity,
     specimen_arrays,
 )
-from ._rig import unpad
-from ._scaling import COORDINATES, PivotScaling
 
 FORMAT = "jaxtube-fit"
 VERSION = 1
@@ -216,7 +215,7 @@ class FitResult:
                     "moment_exponent": listed(law.moment_exponent),
                     "curvature_radius_exponent": listed(law.curvature_radius_exponent),
                     "moment_radius_exponent": listed(law.moment_radius_exponent)},
-            "parameters": [_finite_or_none(dataclasses.asdict(p)) for p in self.parameters],
+            "parameters": [finite_row(dataclasses.asdict(p)) for p in self.parameters],
             "reference": {"pressure_Pa": self.problem.reference[0],
                           "radius_m": self.problem.reference[1]},
             "coordinates": {"names": list(self.problem.names),
@@ -224,8 +223,8 @@ class FitResult:
                             "free_index": list(self.problem.free_index)},
             "fitted_coordinates": self.problem.free_names,
             "fitted_values": self.free_values.tolist(),
-            "free_standard_errors": [_finite(v) for v in self.free_standard_errors],
-            "covariance": [[_finite(v) for v in row] for row in self.covariance],
+            "free_standard_errors": [finite_or_none(v) for v in self.free_standard_errors],
+            "covariance": [[finite_or_none(v) for v in row] for row in self.covariance],
             "noise_N": self.noise, "noise_given": self.problem.noise_given,
             "residual_variance": self.residual_variance,
             "rmse_N": self.rmse, "curves": self.curve_errors(),
@@ -266,15 +265,6 @@ def _threshold(problem: FitProblem, name: str) -> float:
     if parameter is not None:
         return 1e3 * parameter.typical
     return UNIDENTIFIED_SE if name.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
-
-
-def _finite(value):
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def _finite_or_none(row: dict) -> dict:
-    return {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
 
 
 def _report_parameters(problem: FitProblem, x, covariance, se_free):
@@ -399,85 +389,10 @@ def _identifiability_words(problem: FitProblem, unidentified, unresolved_scales,
     return words
 
 
-def predict_from_document(document: dict, pressure: float, radius: float, length: float,
-                          deflection) -> tuple[np.ndarray, np.ndarray]:
-    """Cantilever force [N] and its delta-method standard deviation at tip deflections
-    ``[P]`` [m], from a parameters file's contents (its law, coordinates and covariance)."""
-    from ._effects import BUILT_IN_EFFECTS
-    from ._rig import CantileverRig
-
-    unknown = [name for name in document.get("effects", {}) if name not in BUILT_IN_EFFECTS]
-    if unknown:
-        raise ValueError(f"the fit used effect(s) {unknown}, which are not built in; predict "
-                         "with the Python API (FitResult.predict) instead")
-    effects = tuple(BUILT_IN_EFFECTS[name] for name in document.get("effects", {}))
-    law = document["law"]
-    scaling = PivotScaling(form=law["form"], pivots_per_regime=tuple(law["pivots_per_regime"]),
-                           residual_stiffness_ratio=float(law["residual_stiffness_ratio"]))
-    coordinates = document["coordinates"]
-    free_index = tuple(int(i) for i in coordinates["free_index"])
-    reference = (float(document["reference"]["pressure_Pa"]),
-                 float(document["reference"]["radius_m"]))
-    features = frozenset().union(*[e.features for e in effects])
-    problem = FitProblem(
-        data=None, batch=None, rig=CantileverRig(segments=int(document["segments"]),
-                                                 features=features), effects=effects,
-        scaling=scaling, reference=reference, names=tuple(coordinates["names"]),
-        free_index=free_index, base=np.asarray(coordinates["values"], float),
-        lower=None, upper=None, prior_mean=np.zeros(len(coordinates["names"])),
-        prior_sd=np.full(len(coordinates["names"]), np.inf),
-        noise=float(document["noise_N"]), noise_given=True)
-    values = problem.base[np.asarray(free_index)]
-    arrays = specimen_arrays([pressure], [radius], [length], np.asarray(deflection)[None])
-    force, sens, converged = forces_and_sensitivity(problem, values, arrays)
-    if not np.all(converged):
-        raise RuntimeError(f"prediction: {int(np.sum(~converged))} equilibrium solves did not "
-                           "converge")
-    covariance = np.array(document["covariance"], float)
-    return force[0], _delta_method(sens, covariance)[0]
-
-
 def _delta_method(sensitivity, covariance) -> np.ndarray:
     """Standard deviation of the force, ``sqrt(g^T Cov g)`` per point (``g = dF/dtheta``)."""
     variance = np.einsum("cpi,ij,cpj->cp", sensitivity, covariance, sensitivity)
     return np.sqrt(np.maximum(variance, 0.0))
 
 
-def load_law(path) -> jt.SplineLaw:
-    """The bending law of a parameters file written by ``jaxtube fit`` (clear errors)."""
-    path = Path(path)
-    try:
-        document = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{path}: parameters file not found") from None
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{path}: not valid JSON (line {error.lineno}, column "
-                         f"{error.colno}): {error.msg}") from None
-    if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise ValueError(f"{path}: expected a jaxtube fit parameters file "
-                         f"(\"format\": \"{FORMAT}\")")
-    if document.get("version") != VERSION:
-        raise ValueError(f"{path}: unsupported version {document.get('version')!r}; "
-                         f"expected {VERSION}")
-    law = document.get("law", {})
-    if law.get("type") != "SplineLaw":
-        raise ValueError(f"{path}: law.type must be 'SplineLaw', got {law.get('type')!r}")
-    try:
-        return jt.SplineLaw(
-            curvature_scale=np.asarray(law["curvature_scale"], float),
-            curvature_exponent=np.asarray(law["curvature_exponent"], float),
-            moment_scale=np.asarray(law["moment_scale"], float),
-            moment_exponent=np.asarray(law["moment_exponent"], float),
-            curvature_radius_exponent=None if law.get("curvature_radius_exponent") is None
-            else np.asarray(law["curvature_radius_exponent"], float),
-            moment_radius_exponent=None if law.get("moment_radius_exponent") is None
-            else np.asarray(law["moment_radius_exponent"], float),
-            residual_stiffness_ratio=float(law.get("residual_stiffness_ratio", 0.01)),
-            pivots_per_regime=tuple(int(n) for n in law["pivots_per_regime"]))
-    except KeyError as error:
-        raise ValueError(f"{path}: law.{error.args[0]} is missing") from None
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"{path}: invalid law: {error}") from None
-
-
-__all__ = ["FitResult", "ParameterEstimate", "load_law", "COORDINATES"]
+__all__ = ["FitResult", "ParameterEstimate", "COORDINATES"]

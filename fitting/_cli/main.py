@@ -1,0 +1,51 @@
+"""The ``jaxtube`` command line: one parser, one subcommand per module of this package.
+
+- ``jaxtube simulate SPEC.toml --out DIR``: a structure spec's load path (:mod:`.simulate`).
+- ``jaxtube fit DATA.csv --out DIR`` / ``jaxtube predict ...``: calibration (:mod:`.fit`).
+- ``jaxtube diagnose DATA.csv --out DIR [--effect FILE.py:Class]`` / ``jaxtube demo``: which
+  physical effect the model lacks (:mod:`.diagnose`).
+- ``jaxtube sweep ...``: a law over a pressure x radius x length grid (:mod:`.sweep`).
+
+Exit codes (every subcommand): 0 success; 1 the run finished but some solves did not
+converge (outputs written, failures marked); 2 bad input or bad arguments (nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import jaxtube as jt
+
+from .diagnose import add_demo, add_diagnose
+from .fit import add_fit, add_predict
+from .simulate import add_simulate
+from .sweep import add_sweep
+
+# One function per subcommand registers its parser; add a new subcommand here.
+SUBCOMMANDS = (add_simulate, add_fit, add_predict, add_diagnose, add_demo, add_sweep)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``jaxtube`` argument parser, with one subparser per subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="jaxtube", description="Differentiable simulator of inflatable tube structures.")
+    parser.add_argument("--version", action="version", version=f"jaxtube {jt.__version__}")
+    subparsers = parser.add_subparsers(title="subcommands", metavar="COMMAND")
+    for add in SUBCOMMANDS:
+        add(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxtube`` command (console script); returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help(sys.stderr)
+        return 2
+    return args.run(args)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,2 @@
+"""Figures of fits, predictions and diagnoses (:mod:`.plots`; matplotlib's object API, no
+pyplot)."""
