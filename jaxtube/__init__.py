@@ -46,7 +46,7 @@ from ._solver import RESULTS as RESULTS
 from ._solver import EquilibriumResult as EquilibriumResult
 from ._solver import NewtonKKT as NewtonKKT
 from ._solver import solve_equilibrium as solve_equilibrium
-from ._solver.results import messages as result_messages
+from ._solver import result_messages as result_messages
 from ._spec import LoadedSpec as LoadedSpec
 from ._spec import SpecError as SpecError
 from ._spec import load_spec as load_spec

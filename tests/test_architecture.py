@@ -22,13 +22,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("jaxtube", "fitting")
 MAX_LINES = 500
-# Rules that hold only once the workbench branch (`bench`: the CLI moved to fitting/_cli,
-# fitting split and re-plumbed through `import jaxtube`) is merged.
-WORKBENCH = pytest.mark.xfail(
-    strict=False, reason="fitting is reorganised on the workbench branch `bench` (issue 12)")
-# jaxtube/_cli.py moves to fitting/_cli on the workbench branch; until then its imports of
-# fitting are the only exception to rule (a). Delete this once the branches are merged.
-WAITING_FOR_WORKBENCH_BRANCH = {"jaxtube/_cli.py"}
 
 
 def _module_name(path: Path) -> str:
@@ -79,19 +72,14 @@ def _in(module: str, package: str) -> bool:
 
 
 def test_jaxtube_never_imports_fitting():
-    bad, waiting = [], []
+    bad = []
     for name, path in _sources("jaxtube").items():
         for line, target in _imports(name, path):
             if _in(target, "fitting"):
-                rel = str(path.relative_to(ROOT))
-                (waiting if rel in WAITING_FOR_WORKBENCH_BRANCH else bad).append(
-                    f"{_where(path, line)} imports {target}")
+                bad.append(f"{_where(path, line)} imports {target}")
     assert bad == []
-    if waiting:
-        pytest.xfail("until the workbench branch moves the CLI: " + "; ".join(waiting))
 
 
-@WORKBENCH
 def test_fitting_uses_only_the_public_jaxtube_namespace():
     bad = []
     for name, path in _sources("fitting").items():
@@ -184,17 +172,34 @@ def test_cycle_finder_finds_a_cycle():
 
 
 @pytest.mark.parametrize("package", [
-    "jaxtube", pytest.param("fitting", marks=WORKBENCH)])
+    "jaxtube", "fitting"])
 def test_no_import_cycle_inside_a_package(package):
     assert _cycles(_import_graph(package)) == []
 
 
 @pytest.mark.parametrize("package", [
-    "jaxtube", pytest.param("fitting", marks=WORKBENCH)])
+    "jaxtube", "fitting"])
 def test_no_module_over_500_lines(package):
     long = {str(path.relative_to(ROOT)): count for path in _sources(package).values()
             if (count := len(path.read_text().splitlines())) > MAX_LINES}
-    waiting = {f: n for f, n in long.items() if f in WAITING_FOR_WORKBENCH_BRANCH}
-    assert {f: n for f, n in long.items() if f not in waiting} == {}
-    if waiting:
-        pytest.xfail(f"until the workbench branch moves the CLI: {waiting}")
+    assert long == {}
+
+
+LAZY_ALLOWED = ("tqdm", "matplotlib", "klujax")  # heavy optional libraries, loaded on use
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_import_inside_a_function_except_lazy_optional_libraries(package):
+    """Imports hidden in functions to dodge a cycle are not allowed (move the code instead)."""
+    bad = []
+    for path in _sources(package).values():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for function in ast.walk(tree):
+            if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(function):
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                         [node.module or "."] if isinstance(node, ast.ImportFrom) else [])
+                bad += [f"{_where(path, node.lineno)} imports {n}" for n in names
+                        if not any(_in(n, lazy) for lazy in LAZY_ALLOWED)]
+    assert bad == []

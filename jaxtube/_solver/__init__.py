@@ -5,4 +5,4 @@ from .newton_kkt import EquilibriumResult as EquilibriumResult
 from .newton_kkt import NewtonKKT as NewtonKKT
 from .newton_kkt import solve_equilibrium as solve_equilibrium
 from .results import RESULTS as RESULTS
-from .results import messages as messages
+from .results import result_messages as result_messages

@@ -40,9 +40,9 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
-from .results import RESULTS, messages
+from .results import RESULTS, result_messages
 
-RESULT_MESSAGES = messages(RESULTS)
+RESULT_MESSAGES = result_messages(RESULTS)
 
 
 class NewtonKKT(eqx.Module):

@@ -23,7 +23,7 @@ class RESULTS(eqx.Enumeration):
     nonfinite = "non-finite energy, gradient or Hessian (NaN or inf)"
 
 
-def messages(enumeration: type[eqx.Enumeration]) -> dict[int, str]:
+def result_messages(enumeration: type[eqx.Enumeration]) -> dict[int, str]:
     """``{integer code: message}`` of an enumeration, a derived one's parents' codes first."""
     return dict(enumeration._index_to_message.items() if isinstance(
         enumeration._index_to_message, dict) else enumerate(enumeration._index_to_message))
