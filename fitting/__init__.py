@@ -70,3 +70,29 @@ from ._sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundari
 
 __all__ += ["draw_ranking", "draw_rmse_per_curve"]
 __all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]
+
+from ._shape.files import (
+    ShapeFileError,
+    ShapeFileProblem,
+    load_positions,
+    load_triangles,
+    load_tubes,
+)
+from ._shape.markers import MarkerSet, load_markers, spanwise_family
+from ._shape.registration import (
+    MarkerDistances,
+    Registration,
+    RegistrationResult,
+    marker_distances,
+    marker_rms,
+    register,
+)
+from ._shape.score import ShapeScore, score_shape
+from ._shape.surfaces import TubeSurfaces
+
+__all__ += [
+    "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
+    "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
+    "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
+    "score_shape", "spanwise_family",
+]
