@@ -15,7 +15,6 @@ along the odd wing nodes 1 .. 57 (``LE``). Each beam's radius is half its diamet
 quad with both diagonals gives four overlapping triangles.
 """
 
-from itertools import combinations
 from pathlib import Path
 
 import numpy as np

@@ -4,7 +4,9 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 (:class:`CantileverRig`), the pivot scaling (:class:`PivotScaling`), the fit (:func:`fit`,
 :class:`FitOptions`, :class:`FitResult`), the parameters file (:func:`load_law`), the
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
-and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`).
+and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`), and shapes
+against measured markers (:func:`load_markers`, :class:`TubeSurfaces`, :func:`register`,
+:func:`marker_rms`, :func:`score_shape`).
 The independent continuum reference solver is :mod:`fitting.continuum`.
 """
 
@@ -51,6 +53,24 @@ from ._result import FitResult, ParameterEstimate, load_law
 from ._rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._scaling import PivotScaling, initial_vector, reference_specimen, wall_stiffness_estimates
 from ._score import ScoreTest, cross_validated_rmse, score_test
+from ._shape.files import (
+    ShapeFileError,
+    ShapeFileProblem,
+    load_positions,
+    load_triangles,
+    load_tubes,
+)
+from ._shape.markers import MarkerSet, load_markers, spanwise_family
+from ._shape.registration import (
+    MarkerDistances,
+    Registration,
+    RegistrationResult,
+    marker_distances,
+    marker_rms,
+    register,
+)
+from ._shape.score import ShapeScore, score_shape
+from ._shape.surfaces import TubeSurfaces
 
 __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
@@ -70,25 +90,6 @@ from ._sweep import STATUS_MESSAGES, SweepResult, SweepSettings, regime_boundari
 
 __all__ += ["draw_ranking", "draw_rmse_per_curve"]
 __all__ += ["STATUS_MESSAGES", "SweepResult", "SweepSettings", "regime_boundaries", "sweep"]
-
-from ._shape.files import (
-    ShapeFileError,
-    ShapeFileProblem,
-    load_positions,
-    load_triangles,
-    load_tubes,
-)
-from ._shape.markers import MarkerSet, load_markers, spanwise_family
-from ._shape.registration import (
-    MarkerDistances,
-    Registration,
-    RegistrationResult,
-    marker_distances,
-    marker_rms,
-    register,
-)
-from ._shape.score import ShapeScore, score_shape
-from ._shape.surfaces import TubeSurfaces
 
 __all__ += [
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
