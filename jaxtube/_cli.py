@@ -12,6 +12,8 @@ Subcommands (one ``_add_<name>`` function registers each; add a new one to
   physical effect the model lacks (:mod:`fitting._diagnose_cli`).
 - ``jaxtube sweep ...``: a law over a pressure x radius x length grid
   (:mod:`fitting._sweep_command`).
+- ``jaxtube score-shape --markers M.csv --positions P.csv --tubes T.csv --out DIR``: a
+  solved shape against measured markers (:mod:`fitting._shape.cli`).
 
 Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
 are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).
@@ -146,7 +148,14 @@ def _add_sweep(subparsers) -> None:
     add_sweep(subparsers)
 
 
-_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo, _add_sweep)
+def _add_score_shape(subparsers) -> None:
+    from fitting._shape.cli import add_parser
+
+    add_parser(subparsers)
+
+
+_SUBCOMMANDS = (_add_simulate, _add_fit, _add_predict, _add_diagnose, _add_demo, _add_sweep,
+                _add_score_shape)
 
 
 def build_parser() -> argparse.ArgumentParser:
