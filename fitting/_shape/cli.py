@@ -12,7 +12,8 @@ same way, as the null model. Writes into DIR:
 - ``scores.json``: RMS [mm] overall (tube markers: the peers' metric), per group, canopy;
   the registration and its search; the same for the undeformed structure (or ``null``);
 - ``markers.csv``: one row per marker, ``group,idx,model_group,distance_mm,x_model_m,
-  y_model_m,z_model_m,line`` (signed tube-surface distance; canopy: unsigned);
+  y_model_m,z_model_m,line`` (signed tube-surface distance; canopy: unsigned, empty when no
+  canopy triangles are given);
 - ``shape.png``: the registered markers on the model in 3-D, coloured by error.
 
 Exit codes: 0 success; 1 written, but the registration's final Levenberg-Marquardt run did
@@ -102,7 +103,8 @@ def run(args) -> int:
             writer = csv.writer(handle)
             writer.writerow(MARKER_CSV_COLUMNS)
             for row in score.marker_rows():
-                writer.writerow([f"{v:.6g}" if isinstance(v, float) else v for v in row])
+                writer.writerow([("" if v != v else f"{v:.6g}") if isinstance(v, float) else v
+                                 for v in row])
 
     write_directory(args.out, {
         "scores.json": lambda p: p.write_text(json.dumps(scores, indent=2) + "\n"),
@@ -116,6 +118,10 @@ def run(args) -> int:
         line += f"; canopy markers: {score.canopy_rms_mm:.1f} mm"
     print(line)
     print("  " + ", ".join(f"{g} {v:.0f}" for g, v in score.group_rms_mm.items()) + " [mm]")
+    unscored = sum(g == "canopy" for g in score.model_group) if not surfaces.has_canopy else 0
+    if unscored:
+        print(f"note: {unscored} canopy markers ({args.canopy_group}) not scored: no --canopy "
+              f"triangles given (their distance_mm is left empty)")
     print(f"wrote {', '.join(OUTPUT_FILES)} to {args.out}")
     failed = [name for name, s in (("deformed", score), ("undeformed", null))
               if s is not None and not s.registration.converged]

@@ -26,9 +26,12 @@ def draw_shape(axes, score: ShapeScore, surfaces: TubeSurfaces, title: str, limi
     error = np.abs(score.distance_mm)
     scatter = axes.scatter(*points[~canopy].T, c=error[~canopy], cmap="viridis", vmin=0,
                            vmax=limit_mm, s=22, depthshade=False, label="tube markers")
-    if canopy.any():
-        axes.scatter(*points[canopy].T, c=np.nan_to_num(error[canopy]), cmap="viridis", vmin=0,
+    if canopy.any() and surfaces.has_canopy:
+        axes.scatter(*points[canopy].T, c=error[canopy], cmap="viridis", vmin=0,
                      vmax=limit_mm, marker="^", s=26, depthshade=False, label="canopy markers")
+    elif canopy.any():
+        axes.scatter(*points[canopy].T, color="0.6", marker="^", s=26, depthshade=False,
+                     label="canopy markers (not scored: no canopy)")
     span = np.ptp(np.vstack([positions[nodes.reshape(-1)], points]), axis=0).max() / 2
     centre = positions[nodes.reshape(-1)].mean(0)
     for setter, c in zip((axes.set_xlim, axes.set_ylim, axes.set_zlim), centre):
