@@ -67,6 +67,11 @@ class TubeSurfaces(eqx.Module):
         if bad.size:
             raise ValueError(f"segment {bad[0]} ({segments[bad[0]]}) names a node outside "
                              f"0..{len(positions) - 1}")
+        short = np.flatnonzero(np.linalg.norm(positions[nodes[:, 1]] - positions[nodes[:, 0]],
+                                              axis=1) == 0)
+        if short.size:
+            raise ValueError(f"segment {short[0]} ({segments[short[0]]}) has zero length: its "
+                             f"two nodes are at the same position")
         if not (np.isfinite(radii).all() and (radii >= 0).all()):
             raise ValueError("tube radii must be finite and >= 0")
         triangles = np.zeros((0, 3), int) if canopy_triangles is None else \
