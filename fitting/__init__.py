@@ -4,7 +4,9 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 (:class:`CantileverRig`), the pivot scaling (:class:`PivotScaling`), the fit (:func:`fit`,
 :class:`FitOptions`, :class:`FitResult`), the parameters file (:func:`load_law`), the
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
-and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`).
+and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`), and shapes
+against measured markers (:func:`load_markers`, :class:`TubeSurfaces`, :func:`register`,
+:func:`marker_rms`, :func:`score_shape`).
 The independent continuum reference solver is :mod:`fitting.continuum`; the command line is
 :mod:`fitting._cli` (``jaxtube``).
 """
@@ -59,6 +61,24 @@ from ._figures.plots import (
     ranking_figure,
     where_it_fails_figure,
 )
+from ._shape.files import (
+    ShapeFileError,
+    ShapeFileProblem,
+    load_positions,
+    load_triangles,
+    load_tubes,
+)
+from ._shape.markers import MarkerSet, load_markers, spanwise_family
+from ._shape.registration import (
+    MarkerDistances,
+    Registration,
+    RegistrationResult,
+    marker_distances,
+    marker_rms,
+    register,
+)
+from ._shape.score import ShapeScore, score_shape
+from ._shape.surfaces import TubeSurfaces
 from ._sweep.result import SweepResult, SweepSettings
 from ._sweep.status import STATUS_MESSAGES, SweepStatus
 from ._sweep.sweep import regime_boundaries, sweep
@@ -76,6 +96,10 @@ __all__ = [
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
     "draw_ranking", "draw_rmse_per_curve",
+    "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
+    "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
+    "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
+    "score_shape", "spanwise_family",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

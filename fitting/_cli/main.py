@@ -5,6 +5,8 @@
 - ``jaxtube diagnose DATA.csv --out DIR [--effect FILE.py:Class]`` / ``jaxtube demo``: which
   physical effect the model lacks (:mod:`.diagnose`).
 - ``jaxtube sweep ...``: a law over a pressure x radius x length grid (:mod:`.sweep`).
+- ``jaxtube score-shape --markers M.csv --positions P.csv --tubes T.csv --out DIR``: a
+  solved shape against measured markers (:mod:`.score_shape`).
 
 Exit codes (every subcommand): 0 success; 1 the run finished but some solves did not
 converge (outputs written, failures marked); 2 bad input or bad arguments (nothing written).
@@ -19,11 +21,13 @@ import jaxtube as jt
 
 from .diagnose import add_demo, add_diagnose
 from .fit import add_fit, add_predict
+from .score_shape import add_score_shape
 from .simulate import add_simulate
 from .sweep import add_sweep
 
 # One function per subcommand registers its parser; add a new subcommand here.
-SUBCOMMANDS = (add_simulate, add_fit, add_predict, add_diagnose, add_demo, add_sweep)
+SUBCOMMANDS = (add_simulate, add_fit, add_predict, add_diagnose, add_demo, add_sweep,
+               add_score_shape)
 
 
 def build_parser() -> argparse.ArgumentParser:

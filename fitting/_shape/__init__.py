@@ -1,0 +1,1 @@
+"""Shapes against measured markers (photogrammetry): files, surfaces, registration, scores."""
