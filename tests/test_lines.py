@@ -82,12 +82,10 @@ def discrete_catenary(links, span, stiffness, rest_length, mass):
     return np.concatenate([np.zeros((1, 2)), np.cumsum(steps(solution), axis=0)])
 
 
-@pytest.mark.parametrize("links", [4, 7])
-def test_hanging_chain_matches_discrete_catenary(links):
-    span, stiffness, mass = 1.0, 800.0, 0.05
-    rest_length = 1.25 * span / links
-    # A taut start: nodes at equal steps along a circular arc through the supports whose
-    # chords are 5 % longer than the rest length (every line taut).
+def taut_chain(prefix, links, span, stiffness, rest_length, mass, offset):
+    """Points and lines of a chain between fixed points ``offset`` and ``offset + span x``,
+    started taut: nodes at equal steps along a circular arc through the supports whose
+    chords are 5 % longer than the rest length. Returns (points, lines, node names)."""
     chord = 1.05 * rest_length
 
     def mismatch(half):   # the arc's half-angle at which `links` such chords span it
@@ -98,24 +96,38 @@ def test_hanging_chain_matches_discrete_catenary(links):
     angle = np.linspace(-half, half, links + 1)
     x = 0.5 * span + radius * np.sin(angle)
     sag = radius * (np.cos(angle) - np.cos(half))
-    points = [jt.FixedPoint("left", (0.0, 0.0, 0.0)), jt.FixedPoint("right", (span, 0.0, 0.0))]
-    points += [jt.PointNode(f"p{i}", (x[i], 0.0, -sag[i]), mass=mass) for i in range(1, links)]
-    names = ["left"] + [f"p{i}" for i in range(1, links)] + ["right"]
+    names = [f"{prefix}{i}" for i in range(links + 1)]
+    at = [np.asarray(offset) + [x[i], 0.0, -sag[i]] for i in range(links + 1)]
+    points = [jt.FixedPoint(names[0], offset), jt.FixedPoint(names[-1], at[-1])]
+    points += [jt.PointNode(names[i], at[i], mass=mass) for i in range(1, links)]
     lines = [jt.Line(names[i], names[i + 1], stiffness, rest_length) for i in range(links)]
+    return points, lines, names
+
+
+def test_hanging_chains_match_discrete_catenary():
+    """Chains of 4 and 7 links (one structure, so one compilation) against the independent
+    solve of the discrete catenary."""
+    span, stiffness, mass = 1.0, 800.0, 0.05
+    chains = {4: (0.0, 0.0, 0.0), 7: (3.0, 1.0, 0.5)}
+    points, lines, names = [], [], {}
+    for links, offset in chains.items():
+        p, q, names[links] = taut_chain(f"c{links}_", links, span, stiffness,
+                                        1.25 * span / links, mass, offset)
+        points, lines = points + p, lines + q
     structure, params = jt.build_structure([], [], points=points, lines=lines)
     sol = jax.jit(lambda p: jt.equilibrium(structure, p))(params)
     jt.check_converged(sol)
-
-    expected = discrete_catenary(links, span, stiffness, rest_length, mass)
-    order = [structure.node_id(name) for name in names]
-    position = np.asarray(sol.node_position)[order]
-    np.testing.assert_allclose(position[:, [0, 2]], expected, atol=1e-10)
-    np.testing.assert_allclose(position[:, 1], 0.0, atol=1e-12)
     assert np.all(np.asarray(sol.line_taut))
-    # Supports carry the weight: each half of it, and the same horizontal tension.
-    reaction = np.asarray(sol.fixed_point_reaction)
-    np.testing.assert_allclose(reaction[:, 2], 0.5 * (links - 1) * mass * G, rtol=1e-10)
-    np.testing.assert_allclose(reaction[0, 0], -reaction[1, 0], rtol=1e-10)
+    reaction = np.asarray(sol.fixed_point_reaction).reshape(2, 2, 3)   # chain, end, xyz
+    for c, (links, offset) in enumerate(chains.items()):
+        expected = discrete_catenary(links, span, stiffness, 1.25 * span / links, mass)
+        order = [structure.node_id(name) for name in names[links]]
+        position = np.asarray(sol.node_position)[order] - np.asarray(offset)
+        np.testing.assert_allclose(position[:, [0, 2]], expected, atol=1e-10)
+        np.testing.assert_allclose(position[:, 1], 0.0, atol=1e-12)
+        # Supports carry the weight: each half of it, and the same horizontal tension.
+        np.testing.assert_allclose(reaction[c, :, 2], 0.5 * (links - 1) * mass * G, rtol=1e-10)
+        np.testing.assert_allclose(reaction[c, 0, 0], -reaction[c, 1, 0], rtol=1e-10)
 
 
 SLACK_K, SLACK_L0, SLACK_FORCE = 100.0, 0.9, 40.0
