@@ -35,28 +35,35 @@ def test_smoothed_tension_law_error_bound_and_continuity():
     at ``e = 0``); C1; the energy's derivative is the tension."""
     delta = 1e-3
     e = jnp.linspace(-3 * delta, 3 * delta, 2001)
-    r = smoothed_ramp(e, delta)
-    exact = jnp.maximum(e, 0.0)
-    outside = np.abs(np.asarray(e)) >= delta / 2
-    np.testing.assert_array_equal(np.asarray(r)[outside & (np.asarray(e) < 0)], 0.0)
-    np.testing.assert_allclose(np.asarray(r)[outside], np.asarray(exact)[outside], atol=1e-18)
-    error = np.abs(np.asarray(r - exact))
-    assert error.max() <= delta / 8 * (1 + 1e-12)
-    assert float(smoothed_ramp(jnp.asarray(0.0), delta)) == pytest.approx(delta / 8, rel=1e-12)
-    # C1: the slope is continuous at both ends of the blend (0 and 1).
-    slope = jax.vmap(jax.grad(lambda x: smoothed_ramp(x, delta)))
-    for edge, expected in ((-delta / 2, 0.0), (delta / 2, 1.0)):
-        left, right = slope(jnp.asarray([edge - 1e-12, edge + 1e-12]))
-        assert float(left) == pytest.approx(expected, abs=1e-8)
-        assert float(right) == pytest.approx(expected, abs=1e-8)
-    # R' = r, so the energy k L0^2 R(e) has dU/dl = tension.
-    np.testing.assert_allclose(jax.vmap(jax.grad(lambda x: smoothed_ramp_integral(x, delta)))(e),
-                               r, atol=1e-15)
+    edges = jnp.asarray([-delta / 2 - 1e-12, -delta / 2 + 1e-12,
+                         delta / 2 - 1e-12, delta / 2 + 1e-12])
     length = jnp.asarray([0.9, 1.0, 1.0 + 1e-5, 1.2])
-    du_dl = jax.vmap(jax.grad(lambda x: tension_only_energy(x, 50.0, 1.0, delta)))(length)
-    np.testing.assert_allclose(du_dl, tension(length, 50.0, 1.0, delta), rtol=1e-13)
-    np.testing.assert_allclose(tension(jnp.asarray([0.9, 1.2]), 50.0, 1.0, delta),
-                               [0.0, 50.0 * 0.2], rtol=1e-13)
+
+    @jax.jit   # one compilation for every evaluation below
+    def evaluate(e, edges, length):
+        return dict(
+            ramp=smoothed_ramp(e, delta),
+            at_zero=smoothed_ramp(jnp.zeros(()), delta),
+            slope_at_edges=jax.vmap(jax.grad(lambda x: smoothed_ramp(x, delta)))(edges),
+            integral_slope=jax.vmap(jax.grad(lambda x: smoothed_ramp_integral(x, delta)))(e),
+            du_dl=jax.vmap(jax.grad(lambda x: tension_only_energy(x, 50.0, 1.0, delta)))(length),
+            tension=tension(length, 50.0, 1.0, delta),
+        )
+
+    out = {k: np.asarray(v) for k, v in evaluate(e, edges, length).items()}
+    e, r = np.asarray(e), out["ramp"]
+    exact = np.maximum(e, 0.0)
+    outside = np.abs(e) >= delta / 2
+    np.testing.assert_array_equal(r[outside & (e < 0)], 0.0)
+    np.testing.assert_allclose(r[outside], exact[outside], atol=1e-18)
+    assert np.abs(r - exact).max() <= delta / 8 * (1 + 1e-12)
+    assert float(out["at_zero"]) == pytest.approx(delta / 8, rel=1e-12)
+    # C1: the slope is continuous at both ends of the blend (0, then 1).
+    np.testing.assert_allclose(out["slope_at_edges"], [0.0, 0.0, 1.0, 1.0], atol=1e-8)
+    # R' = r, so the energy k L0^2 R(e) has dU/dl = tension.
+    np.testing.assert_allclose(out["integral_slope"], r, atol=1e-15)
+    np.testing.assert_allclose(out["du_dl"], out["tension"], rtol=1e-13)
+    np.testing.assert_allclose(out["tension"][[0, 3]], [0.0, 50.0 * 0.2], rtol=1e-13)
 
 
 def discrete_catenary(links, span, stiffness, rest_length, mass):
