@@ -13,6 +13,11 @@ instead of silently failing in float32.
 Threads: importing jaxtube before JAX has started selects single-threaded XLA CPU kernels
 (``--xla_cpu_multi_thread_eigen=false`` in ``XLA_FLAGS``) unless ``XLA_FLAGS`` already sets
 that flag or ``JAXTUBE_XLA_THREADS=1`` (README, "Threads").
+
+Whole kites (issue 14): point nodes (``PointNode``, ``FixedPoint``), tension-only lines
+(``Line``), ropes over pulleys (``Pulley``) and lumped masses (``PointMass``) join tubes in
+one energy through ``build_structure(..., points=, lines=, pulleys=, point_masses=)``; the
+API summary is the docstring of ``jaxtube._elements``.
 """
 
 from . import _config  # noqa: F401, I001  (first: XLA_FLAGS and float64 before JAX runs)
@@ -22,6 +27,13 @@ from ._controls import scale_loads as scale_loads
 from ._equilibrium import Solution as Solution
 from ._equilibrium import check_converged as check_converged
 from ._equilibrium import equilibrium as equilibrium
+from ._elements import ElementParameters as ElementParameters
+from ._elements import ElementTopology as ElementTopology
+from ._elements import FixedPoint as FixedPoint
+from ._elements import Line as Line
+from ._elements import PointMass as PointMass
+from ._elements import PointNode as PointNode
+from ._elements import Pulley as Pulley
 from ._laws import AbstractMomentLaw as AbstractMomentLaw
 from ._laws import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from ._laws import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011

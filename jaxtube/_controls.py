@@ -27,7 +27,8 @@ class ForceControl(eqx.Module):
 
 
 class DisplacementControl(eqx.Module):
-    """Drive ``node`` (global index) along unit ``direction [3]`` by ``displacements [K]`` [m]."""
+    """Drive ``node`` (global index: a tube node or a point node) along unit
+    ``direction [3]`` by ``displacements [K]`` [m]."""
 
     node: int = eqx.field(static=True)
     direction: Array
@@ -41,9 +42,11 @@ class DisplacementControl(eqx.Module):
 
 
 def scale_loads(params: StructureParameters, factor) -> StructureParameters:
-    """Parameters with point forces, torques and line loads multiplied by ``factor``."""
+    """Parameters with point forces (on tube and point nodes), torques and line loads
+    multiplied by ``factor``."""
     return eqx.tree_at(
-        lambda p: (p.node_force, p.node_torque, p.line_load),
+        lambda p: (p.node_force, p.node_torque, p.line_load, p.elements.point_force),
         params,
-        (params.node_force * factor, params.node_torque * factor, params.line_load * factor),
+        (params.node_force * factor, params.node_torque * factor, params.line_load * factor,
+         params.elements.point_force * factor),
     )

@@ -15,8 +15,14 @@ import numpy as np
 from jax import Array
 
 from ._controls import DisplacementControl
-from ._mechanics.energy import energy_and_constraints, joint_moments, world_joint_moments
-from ._mechanics.geometry import reference_geometry
+from ._elements import element_results
+from ._mechanics.energy import (
+    energy_and_constraints,
+    joint_moments,
+    node_displacement,
+    world_joint_moments,
+)
+from ._mechanics.geometry import ReferenceGeometry, reference_geometry
 from ._mechanics.hessian import lagrangian_hessian
 from ._mechanics.kinematics import configuration, initial_state, spring_joints
 from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
@@ -29,10 +35,13 @@ class Solution(eqx.Module):
 
     Attributes:
         state: ``{"root_position": [3], "segment_rotation": [S, 3]}`` (see
-            ``jaxtube._mechanics``).
-        multipliers: ``[m]`` Lagrange multipliers (supports, loops, control).
+            ``jaxtube._mechanics``), with ``"point_position": [P, 3]`` when the structure
+            has point nodes, lines or pulleys.
+        multipliers: ``[m]`` Lagrange multipliers (supports, loops, fixed points and
+            attachment ties, control).
         converged, iterations, result, residual: solver report (see RESULT_MESSAGES).
-        node_position: deformed node positions ``[N, 3]`` [m].
+        node_position: deformed positions of every node ``[N + P0, 3]`` [m]: tube nodes,
+            then the structure's point nodes (``Structure.node_id`` numbering).
         joint_rotation: rotation vectors of the spring joints ``[J, 3]`` [rad].
         joint_curvature: ``[J, 3]`` [1/m] (bending 1, bending 2, twist).
         joint_moment: joint frame ``[J, 3]`` [N m]; joint_moment_world: world frame.
@@ -44,6 +53,14 @@ class Solution(eqx.Module):
             (under force control: the applied force at that node along it, or 0).
         control_displacement: ``(x - X) . d`` at the controlled node [m].
         load_factor: the force-control factor (1 under displacement control).
+        point_position: the point nodes ``[P0, 3]`` [m] (free and fixed, declaration order).
+        line_length, line_tension, line_taut: per line ``[L]``: m, N (``k (l - L0)`` when
+            taut, smoothed over the tension smoothing), carries tension.
+        pulley_length, pulley_tension, pulley_taut: per pulley rope ``[Q]`` (one tension
+            on both sides).
+        fixed_point_reaction: force each fixed point exerts on the structure ``[F, 3]`` [N].
+        attachment_force: force the lines, pulleys and masses apply to each attached tube
+            node ``[A, 3]`` [N] (``Structure.elements.attachment_nodes``).
     """
 
     state: dict
@@ -63,10 +80,21 @@ class Solution(eqx.Module):
     control_force: Array
     control_displacement: Array
     load_factor: Array
+    point_position: Array
+    line_length: Array
+    line_tension: Array
+    line_taut: Array
+    pulley_length: Array
+    pulley_tension: Array
+    pulley_taut: Array
+    fixed_point_reaction: Array
+    attachment_force: Array
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
     state = eq.state
+    if not structure.segment_count:
+        return _points_only_solution(structure, params, eq, control, factor)
     config = configuration(structure, geometry, state)
     joints = spring_joints(structure, geometry, state)
     moment, regime = joint_moments(joints, params)
@@ -85,7 +113,8 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
     if control is not None:
         node, direction, _ = control
         control_force = -eq.multipliers[-1]
-        displacement = jnp.dot(config.node_position[node] - params.node_position[node], direction)
+        displacement = jnp.dot(node_displacement(structure, config, state, params, node),
+                               direction)
     else:
         control_force = jnp.zeros(())
         displacement = jnp.zeros(())
@@ -96,7 +125,7 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
         iterations=eq.iterations,
         result=eq.result,
         residual=eq.residual,
-        node_position=config.node_position,
+        **element_results(structure, params, state, eq.multipliers, config.node_position),
         joint_rotation=joints.rotation,
         joint_curvature=joints.rotation / joints.tributary[:, None],
         joint_moment=moment,
@@ -108,6 +137,38 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
         control_displacement=displacement,
         load_factor=jnp.asarray(factor, dtype=float),
     )
+
+
+def _points_only_solution(structure, params, eq, control, factor) -> Solution:
+    """Solution of a structure without tubes: no joints, no supports."""
+    if control is not None:
+        node, direction, _ = control
+        control_force = -eq.multipliers[-1]
+        displacement = jnp.dot(node_displacement(structure, None, eq.state, params, node),
+                               direction)
+    else:
+        control_force, displacement = jnp.zeros(()), jnp.zeros(())
+    none3, none = jnp.zeros((0, 3)), jnp.zeros((0,), jnp.int32)
+    return Solution(
+        state=eq.state, multipliers=eq.multipliers, converged=eq.converged,
+        iterations=eq.iterations, result=eq.result, residual=eq.residual,
+        **element_results(structure, params, eq.state, eq.multipliers, None),
+        joint_rotation=none3, joint_curvature=none3, joint_moment=none3,
+        joint_moment_world=none3, joint_regime=none, reaction_force=none3,
+        reaction_moment=none3, control_force=control_force, control_displacement=displacement,
+        load_factor=jnp.asarray(factor, dtype=float),
+    )
+
+
+def tube_reference_geometry(structure, params) -> ReferenceGeometry | None:
+    """The tubes' reference geometry, or ``None`` for a structure without tubes."""
+    return reference_geometry(structure, params) if structure.segment_count else None
+
+
+def constraint_count(structure) -> int:
+    """Equality constraints before the control: supports, loops, fixed points, ties."""
+    return (3 * len(structure.supports) + 3 * len(structure.closures)
+            + structure.elements.constraint_count)
 
 
 def equilibrium(
@@ -124,7 +185,7 @@ def equilibrium(
     :class:`DisplacementControl`, ``displacement`` [m] is imposed (default: its last value).
     ``initial`` is a previous :class:`Solution` to warm-start from.
     """
-    geometry = reference_geometry(structure, params)
+    geometry = tube_reference_geometry(structure, params)
     ctrl = None
     if control is not None:
         value = control.displacements[-1] if displacement is None else displacement

@@ -12,8 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from ._controls import DisplacementControl, ForceControl, scale_loads
-from ._equilibrium import Solution, solve_load_level
-from ._mechanics.geometry import reference_geometry
+from ._equilibrium import Solution, constraint_count, solve_load_level, tube_reference_geometry
 from ._mechanics.kinematics import initial_state
 from ._solver.newton_kkt import NewtonKKT
 from ._structure.structure import Structure, StructureParameters
@@ -28,9 +27,9 @@ def solve_path(
     """Follow a load path by stepping (``lax.scan``); returns a :class:`Solution` whose
     leaves have a leading step axis ``[K]``. Each step is warm-started from the previous
     one and reports its own convergence."""
-    geometry = reference_geometry(structure, params)
+    geometry = tube_reference_geometry(structure, params)
     state0 = initial_state(structure, params)
-    m_support = 3 * len(structure.supports) + 3 * len(structure.closures)
+    m_support = constraint_count(structure)
 
     if isinstance(path, DisplacementControl):
         lam0 = jnp.zeros((m_support + 1,))

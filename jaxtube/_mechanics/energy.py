@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._elements import element_constraints, element_energy
 from .._rotation import inverse_right_jacobian_transpose, matmul3, matvec3, transpose3
 from .._structure.structure import Structure, StructureParameters
 from .geometry import ReferenceGeometry, take_rows
@@ -117,8 +118,11 @@ def load_potential(
 
 def support_constraints(structure: Structure, config: Configuration, state: dict, params) -> Array:
     """Equality constraints [m]: the root and every other support stay at their reference
-    positions; every closed loop closes. Their multipliers are minus the reaction forces."""
-    parts = [state["root_position"] - params.node_position[structure.root_node]]
+    positions; every closed loop closes. Their multipliers are minus the reaction forces.
+    Without supports the root floats (no constraint)."""
+    parts = [jnp.zeros((0,), state["root_position"].dtype)]
+    if structure.supports:
+        parts.append(state["root_position"] - params.node_position[structure.root_node])
     for node, _kind in structure.supports[1:]:
         parts.append(config.node_position[node] - params.node_position[node])
     for segment, node in structure.closures:
@@ -141,28 +145,54 @@ def world_joint_moments(config: Configuration, joints: JointSet, moment: Array) 
 
 
 def total_energy(structure: Structure, params, geometry: ReferenceGeometry, state) -> Array:
-    """Total potential energy: joint strain energy plus the potential of the dead loads [J]."""
-    config = configuration(structure, geometry, state)
+    """Total potential energy: joint strain energy plus the potential of the dead loads,
+    plus lines, pulleys and point masses [J]."""
+    config = tube_configuration(structure, geometry, state)
     return potential_energy(structure, params, geometry, config, state)
 
 
+def tube_configuration(structure, geometry, state) -> Configuration | None:
+    """The tubes' configuration, or ``None`` for a structure without tubes."""
+    return configuration(structure, geometry, state) if structure.segment_count else None
+
+
 def potential_energy(structure, params, geometry, config, state) -> Array:
-    joints = spring_joints(structure, geometry, state)
-    return (strain_energy(joints, params) + shear_energy(structure, geometry, params, state)
-            + load_potential(structure, geometry, config, params, state))
+    energy = jnp.zeros(())
+    if config is not None:
+        joints = spring_joints(structure, geometry, state)
+        energy = (strain_energy(joints, params) + shear_energy(structure, geometry, params, state)
+                  + load_potential(structure, geometry, config, params, state))
+    if structure.elements.active:
+        energy = energy + element_energy(structure.elements, params.elements, params.gravity,
+                                         state["point_position"])
+    return energy
+
+
+def node_displacement(structure, config, state, params, node: int) -> Array:
+    """``x - X`` of a global node (tube node or point node) [m], ``[3]``."""
+    if node < structure.node_count:
+        return config.node_position[node] - params.node_position[node]
+    row = node - structure.node_count
+    return state["point_position"][row] - params.elements.point_position[row]
 
 
 def constraints(structure, config, state, params, control) -> Array:
-    c = support_constraints(structure, config, state, params)
+    parts = [jnp.zeros((0,))]
+    if config is not None:
+        parts.append(support_constraints(structure, config, state, params))
+    if structure.elements.active:
+        parts.append(element_constraints(structure.elements, params.elements,
+                                         state["point_position"],
+                                         None if config is None else config.node_position))
     if control is not None:
         node, direction, value = control
-        moved = config.node_position[node] - params.node_position[node]
-        c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
-    return c
+        moved = node_displacement(structure, config, state, params, node)
+        parts.append((jnp.dot(moved, direction) - value)[None])
+    return jnp.concatenate(parts)
 
 
 def energy_and_constraints(structure, geometry, state, params, control):
     """Energy [J] and constraints [m] from one evaluation of the kinematics."""
-    config = configuration(structure, geometry, state)
+    config = tube_configuration(structure, geometry, state)
     energy = potential_energy(structure, params, geometry, config, state)
     return energy, constraints(structure, config, state, params, control)

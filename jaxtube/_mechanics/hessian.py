@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._elements import dense_from_blocks, element_hessian_blocks, state_index
 from .._rotation import matvec3, rotation_matrix, transpose3
 from .._structure.structure import Structure
 from .energy import constraints, law_groups, load_potential, shear_stiffness
@@ -38,7 +39,12 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     blocks come from ``jax.hessian`` of these small element functions, vmapped, and are
     scatter-added at static indices. Cost grows linearly with the segment count (the
     dense autodiff Hessian grows quadratically and pushes every unknown through the chain).
+    Lines and pulleys add 6 x 6 and 9 x 9 blocks over their point nodes
+    (``jaxtube._elements.element_hessian_blocks``); attachment ties are linear in the
+    segment vectors and enter through ``g_s``.
     """
+    if not structure.segment_count:
+        return dense_from_blocks(state, _element_blocks(structure, params, state))
     phi = state["segment_rotation"]
     frame, step = segment_steps(geometry, state)
 
@@ -53,10 +59,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     step_force = jax.grad(linear_part)(step)
     body_force = matvec3(transpose3(geometry.frame), step_force)
 
-    leaves, treedef = jax.tree_util.tree_flatten(state)  # the order of ravel_pytree
-    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
-    index = treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
-                               for o, leaf in zip(offsets, leaves)])
+    index = state_index(state)
     rotation_index = index["segment_rotation"]  # [S, 3] positions in the flat state
 
     if "segment_shear" in state:
@@ -107,8 +110,13 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
         cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
         values.append(blocks)
 
-    n = int(offsets[-1])
-    rows = np.concatenate([r.reshape(-1) for r in rows])
-    cols = np.concatenate([c.reshape(-1) for c in cols])
-    values = jnp.concatenate([v.reshape(-1) for v in values])
-    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+    blocks = list(zip(rows, cols, values)) + _element_blocks(structure, params, state)
+    return dense_from_blocks(state, blocks)
+
+
+def _element_blocks(structure, params, state) -> list:
+    """Hessian blocks ``(rows, cols, values)`` of the lines and pulleys."""
+    if not structure.elements.active:
+        return []
+    return element_hessian_blocks(structure.elements, params.elements,
+                                  state["point_position"], state_index(state)["point_position"])

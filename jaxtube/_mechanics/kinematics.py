@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._elements import initial_point_position
 from .._rotation import matmul3, matvec3, rotation_matrix, rotation_vector
 from .._structure.structure import GROUND, Structure, StructureParameters
 from .geometry import ReferenceGeometry, take_rows
@@ -30,13 +31,17 @@ class Configuration(eqx.Module):
 
 def initial_state(structure: Structure, params: StructureParameters) -> dict:
     """The undeformed state: zero segment rotations (and shear strains), root at its
-    reference position."""
-    state = {
-        "root_position": params.node_position[structure.root_node],
-        "segment_rotation": jnp.zeros((structure.segment_count, 3)),
-    }
+    reference position; point nodes (``"point_position"`` ``[P, 3]``, when the structure
+    has any) at their reference positions. A structure without tubes has only points."""
+    state = {}
+    if structure.segment_count:
+        state["root_position"] = params.node_position[structure.root_node]
+        state["segment_rotation"] = jnp.zeros((structure.segment_count, 3))
     if structure.shear:
         state["segment_shear"] = jnp.zeros((structure.segment_count, 2))
+    if structure.elements.active:
+        state["point_position"] = initial_point_position(
+            structure.elements, params.elements, params.node_position)
     return state
 
 

@@ -32,6 +32,8 @@ import equinox as eqx
 import numpy as np
 from jax import Array
 
+from .._elements import ElementParameters, ElementTopology
+
 # Joint kinds (static integers): how the reference relative rotation is split.
 JOINT_BEND = 0  # two segments of one tube: mid-frame split, tributary (L_a + L_b) / 2
 JOINT_ATTACH = 1  # a tube attached to another tube: child frame, tributary L_child / 2
@@ -120,13 +122,22 @@ class Structure(eqx.Module):
     closures: tuple[tuple[int, int], ...] = eqx.field(static=True)  # (segment, node) pairs
     torque_nodes: tuple[int, ...] = eqx.field(static=True)  # nodes that can carry a torque
     shear: bool = eqx.field(static=True, default=False)  # segments carry shear strains
+    # Point nodes, lines, pulleys, masses (jaxtube._elements); global ids N.. after tubes.
+    elements: ElementTopology = eqx.field(static=True, default=ElementTopology())
 
     @property
     def segment_count(self) -> int:
         return len(self.segment_tube)
 
     def node_id(self, ref) -> int:
-        """Global node index of ``"tube:index"`` / ``(tube, index)``; clear error if absent."""
+        """Global node index of ``"tube:index"`` / ``(tube, index)`` or of a point node's
+        name (point nodes follow the tube nodes); clear error if absent."""
+        if isinstance(ref, str) and ":" not in ref:
+            found = self.elements.point_id(ref.strip(), self.node_count)
+            if found is None:
+                raise ValueError(f"node {ref!r}: no point node of that name and not a "
+                                 "'tube:index' reference")
+            return found
         return resolve_node(ref, self.tube_names, self.tube_node_ids)
 
     def spring_joint_topology(self) -> SpringJointTopology:
@@ -162,6 +173,7 @@ class StructureParameters(eqx.Module):
             Which nodes can carry a torque is topology (decided when the structure is
             built), so structures without torques pay nothing for them.
         gravity: gravitational acceleration, ``[3]`` [m/s^2].
+        elements: point nodes, lines, pulleys and masses (``jaxtube._elements``).
     """
 
     node_position: Array
@@ -175,6 +187,7 @@ class StructureParameters(eqx.Module):
     node_torque: Array
     gravity: Array
     shear_flexibility: Array
+    elements: ElementParameters = eqx.field(default_factory=ElementParameters)
 
 
 def _parse_node_ref(ref) -> tuple[str, int]:
