@@ -135,7 +135,8 @@ def test_assembled_hessian_with_elements_equals_autodiff_hessian():
     """At random states (lines taut, in the blend and slack) and random multipliers."""
     from jax.flatten_util import ravel_pytree
 
-    from jaxtube._model import _objective, lagrangian_hessian
+    from jaxtube._mechanics import energy_and_constraints as _objective
+    from jaxtube._mechanics import lagrangian_hessian
 
     mast = jt.straight_tube("mast", (0, 0, 0), (0.1, 0.0, 1.0), 4, 0.05, 2e4,
                             jt.LinearLaw(30.0), torsion_law=jt.LinearLaw(20.0),
