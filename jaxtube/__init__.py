@@ -32,10 +32,15 @@ import jax as _jax
 if _os.environ.get("JAXTUBE_NO_X64", "0") in ("", "0"):
     _jax.config.update("jax_enable_x64", True)
 
+from ._io.kite_fem_reader import KiteFemFormatError as KiteFemFormatError
+from ._io.kite_fem_reader import KiteFemModel as KiteFemModel
+from ._io.kite_fem_reader import read_kite_fem as read_kite_fem
+from ._io.kite_fem_reader import read_kite_fem_positions as read_kite_fem_positions
 from ._kite import Strut as Strut
 from ._kite import TubeKite as TubeKite
 from ._kite import arc_through_tips as arc_through_tips
 from ._kite import double_taper as double_taper
+from ._law_scaled import ScaledLaw as ScaledLaw
 from ._laws import AbstractMomentLaw as AbstractMomentLaw
 from ._laws import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from ._laws import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011
