@@ -6,6 +6,8 @@ Subcommands (one ``_add_<name>`` function registers each; add a new one to
 - ``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
   in :mod:`jaxtube._spec`), compile and run the load path, and write ``path.csv``,
   ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
+  ``jaxtube simulate --kite-fem initial.npz --out DIR [--pressure-bar P] [--bending-scale S]``
+  hangs a kite_fem model instead (:mod:`jaxtube._io.kite_fem_run`).
 - ``jaxtube fit DATA.csv --out DIR`` / ``jaxtube predict ...``: calibration
   (:mod:`fitting._commands`).
 - ``jaxtube diagnose DATA.csv --out DIR [--effect FILE.py:Class]`` / ``jaxtube demo``: which
@@ -102,7 +104,17 @@ def _add_simulate(subparsers) -> None:
         "simulate", help="run the load path of a TOML spec and write results",
         description="Load a TOML structure spec, follow its load path and write path.csv, "
                     "force_deflection.png, deformed_shape.png and summary.json into --out.")
-    parser.add_argument("spec", type=Path, help="the TOML spec file")
+    parser.add_argument("spec", type=Path, nargs="?", default=None,
+                        help="the TOML spec file (or --kite-fem)")
+    parser.add_argument("--kite-fem", type=Path, default=None, metavar="NPZ",
+                        help="instead of a spec: hang a kite_fem model (initial.npz) from its "
+                             "suspension nodes under gravity and write positions.csv, "
+                             "lines.csv, kite_shape.png, summary.json "
+                             "(jaxtube._io.kite_fem_run); --steps: gravity steps (default 1)")
+    parser.add_argument("--pressure-bar", type=positive_float, default=None,
+                        help="with --kite-fem: tube pressure [bar] (default: the file's)")
+    parser.add_argument("--bending-scale", type=positive_float, default=None,
+                        help="with --kite-fem: factor on Breukels' 2011 bending law")
     parser.add_argument("--out", type=Path, required=True,
                         help="output directory (created; existing files of the same names "
                              "are replaced, other files are left alone)")
@@ -200,6 +212,15 @@ def _simulate(args) -> int:
     if out.exists() and not out.is_dir():
         report.problem(f"error: --out {out} exists and is not a directory")
         return 2
+    if (args.spec is None) == (args.kite_fem is None):
+        report.problem("error: give either a spec file or --kite-fem NPZ")
+        return 2
+    if args.kite_fem is not None:
+        from ._io.kite_fem_run import simulate_kite_fem
+
+        return simulate_kite_fem(args.kite_fem, out, pressure_bar=args.pressure_bar,
+                                 bending_scale=args.bending_scale, steps=args.steps or 1,
+                                 quiet=args.quiet)
     try:
         spec = load_spec(args.spec, steps=args.steps)
     except SpecError as error:

@@ -30,10 +30,10 @@ Top level (anything else is an error, with a suggestion of the closest allowed k
   then optional (further tubes, supports and connections may still be added); node names
   ``le:centre``, ``le:left_tip``, ``le:right_tip``, ``strut_k:root``, ``strut_k:end`` work
   wherever a node is named.
-- Reserved for the full kite of a later version (an error now, with that reason):
-  ``[[canopy]]`` (the membrane between the tubes), ``[[line]]`` (bridle lines that carry
-  only tension, between named nodes), ``[[point_mass]]`` (masses at named nodes). They
-  will refer to nodes by the same names, so frames written now stay valid.
+- ``[[point]]``, ``[[line]]``, ``[[pulley]]``, ``[[canopy]]``, ``[[point_mass]]``
+  (optional): point nodes (free or fixed), tension-only lines, ropes over pulleys, canopy
+  nets of lines and lumped masses; keys in :mod:`jaxtube._spec_elements`. With a fixed
+  ``[[point]]`` the ``[[support]]`` tables are optional (a frame held by lines).
 
 ``[[tube]]``: one inflated tube, cut into equal rigid segments.
 
@@ -174,6 +174,7 @@ from ._laws import (
     TensionFieldLaw,
 )
 from ._model import DisplacementControl, ForceControl
+from ._spec_elements import ELEMENT_TABLES, read_element_tables
 from ._structure import (
     STANDARD_GRAVITY,
     Connection,
@@ -932,11 +933,7 @@ _REQUIRED_TABLES = {"tube": "one or more [[tube]] tables (or a [kite])", "suppor
                     "more [[support]] tables (or a [kite])", "path": "a [path] table"}
 # Reserved for the full kite of a later format version; named here so that a spec using
 # them gets a clear message instead of "unknown key".
-RESERVED_TABLES = {
-    "canopy": "the kite canopy (a membrane between the tubes)",
-    "line": "bridle lines, which carry tension only",
-    "point_mass": "point masses",
-}
+RESERVED_TABLES: dict[str, str] = {}  # none today: the element tables arrived
 
 
 # ------------------------------------------------------------------------------------------
@@ -982,16 +979,24 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
     p = _Problems(source)
     required = {k: v for k, v in _REQUIRED_TABLES.items()
                 if "kite" not in document or k not in ("tube", "support")}
+    if "point" in document:  # a fixed point may hold the frame instead (checked below)
+        required.pop("support", None)
     for key, what in RESERVED_TABLES.items():
         if key in document:
             p.add(key, f"reserved for {what} in a later spec format version; this jaxtube "
                   f"(format version {FORMAT_VERSION}) cannot simulate it yet")
     _check_keys(p, {k: v for k, v in document.items() if k not in RESERVED_TABLES}, "",
-                tuple(_TABLE_READERS), required)
+                tuple(_TABLE_READERS) + ELEMENT_TABLES, required)
     ctx = _Context()
     for key, read in _TABLE_READERS.items():
         if key in document:
             read(p, document[key], ctx)
+    elements = read_element_tables(p, document, ctx)
+    if "point" in document and "support" not in document and "kite" not in document \
+            and not elements.fixed and not any(isinstance(t, dict) and "fixed" in t
+                                               for t in document.get("point") or []):
+        p.add("support", "missing required key (expected one or more [[support]] tables, "
+              "or a [[point]] with fixed = true holding the structure by lines)")
     if "support" in document and not ctx.supports and isinstance(document["support"], list):
         p.add("support", "expected at least one [[support]]")
     if steps is not None and not (isinstance(steps, int) and steps > 0):
@@ -1018,14 +1023,15 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
         torque[name(ref)] = torque.get(name(ref), 0.0) + t
     gravity = ctx.gravity
     if gravity is None:
-        has_mass = any(float(t.mass_per_length) > 0 for t in ctx.tubes)
+        has_mass = any(float(t.mass_per_length) > 0 for t in ctx.tubes) or elements.has_mass
         gravity = np.array([0.0, 0.0, -STANDARD_GRAVITY if has_mass else 0.0])
     try:
         structure, params = build_structure(
             ctx.tubes,
             [Support(name(ref), kind) for _, ref, kind in ctx.supports],
             [Connection(name(a), name(b), kind) for _, a, b, kind in ctx.connections],
-            node_force=force or None, node_torque=torque or None, gravity=gravity)
+            node_force=force or None, node_torque=torque or None, gravity=gravity,
+            **elements.build_arguments())
     except ValueError as error:
         raise SpecError([f"{source}: cannot assemble the structure: {error}"]) from None
 
