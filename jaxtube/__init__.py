@@ -13,6 +13,11 @@ instead of silently failing in float32.
 Threads: importing jaxtube before JAX has started selects single-threaded XLA CPU kernels
 (``--xla_cpu_multi_thread_eigen=false`` in ``XLA_FLAGS``) unless ``XLA_FLAGS`` already sets
 that flag or ``JAXTUBE_XLA_THREADS=1`` (README, "Threads").
+
+Whole kites (issue 14): point nodes (``PointNode``, ``FixedPoint``), tension-only lines
+(``Line``), ropes over pulleys (``Pulley``) and lumped masses (``PointMass``) join tubes in
+one energy through ``build_structure(..., points=, lines=, pulleys=, point_masses=)``; the
+API summary is the docstring of ``jaxtube._elements``.
 """
 
 import os as _os
@@ -32,6 +37,17 @@ import jax as _jax
 if _os.environ.get("JAXTUBE_NO_X64", "0") in ("", "0"):
     _jax.config.update("jax_enable_x64", True)
 
+from ._elements import ElementParameters as ElementParameters
+from ._elements import ElementTopology as ElementTopology
+from ._elements import FixedPoint as FixedPoint
+from ._elements import Line as Line
+from ._elements import PointMass as PointMass
+from ._elements import PointNode as PointNode
+from ._elements import Pulley as Pulley
+from ._io.kite_fem import KiteFemImport as KiteFemImport
+from ._io.kite_fem import hang_kite as hang_kite
+from ._io.kite_fem import import_kite_fem as import_kite_fem
+from ._io.kite_fem import write_positions_csv as write_positions_csv
 from ._io.kite_fem_reader import KiteFemFormatError as KiteFemFormatError
 from ._io.kite_fem_reader import KiteFemModel as KiteFemModel
 from ._io.kite_fem_reader import read_kite_fem as read_kite_fem

@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._elements import initial_point_position
 from ._rotation import (
     inverse_right_jacobian_transpose,
     matmul3,
@@ -223,13 +224,17 @@ class Configuration(eqx.Module):
 
 def initial_state(structure: Structure, params: StructureParameters) -> dict:
     """The undeformed state: zero segment rotations (and shear strains), root at its
-    reference position."""
-    state = {
-        "root_position": params.node_position[structure.root_node],
-        "segment_rotation": jnp.zeros((structure.segment_count, 3)),
-    }
+    reference position; point nodes (``"point_position"`` ``[P, 3]``, when the structure
+    has any) at their reference positions. A structure without tubes has only points."""
+    state = {}
+    if structure.segment_count:
+        state["root_position"] = params.node_position[structure.root_node]
+        state["segment_rotation"] = jnp.zeros((structure.segment_count, 3))
     if structure.shear:
         state["segment_shear"] = jnp.zeros((structure.segment_count, 2))
+    if structure.elements.active:
+        state["point_position"] = initial_point_position(
+            structure.elements, params.elements, params.node_position)
     return state
 
 
@@ -434,8 +439,11 @@ def load_potential(
 
 def support_constraints(structure: Structure, config: Configuration, state: dict, params) -> Array:
     """Equality constraints [m]: the root and every other support stay at their reference
-    positions; every closed loop closes. Their multipliers are minus the reaction forces."""
-    parts = [state["root_position"] - params.node_position[structure.root_node]]
+    positions; every closed loop closes. Their multipliers are minus the reaction forces.
+    Without supports the root floats (no constraint)."""
+    parts = [jnp.zeros((0,), state["root_position"].dtype)]
+    if structure.supports:
+        parts.append(state["root_position"] - params.node_position[structure.root_node])
     for node, _kind in structure.supports[1:]:
         parts.append(config.node_position[node] - params.node_position[node])
     for segment, node in structure.closures:

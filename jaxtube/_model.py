@@ -21,6 +21,12 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._elements import (
+    element_constraints,
+    element_energy,
+    element_hessian_blocks,
+    line_report,
+)
 from ._mechanics import (
     Configuration,
     ReferenceGeometry,
@@ -56,7 +62,8 @@ class ForceControl(eqx.Module):
 
 
 class DisplacementControl(eqx.Module):
-    """Drive ``node`` (global index) along unit ``direction [3]`` by ``displacements [K]`` [m]."""
+    """Drive ``node`` (global index: a tube node or a point node) along unit
+    ``direction [3]`` by ``displacements [K]`` [m]."""
 
     node: int = eqx.field(static=True)
     direction: Array
@@ -75,10 +82,13 @@ class Solution(eqx.Module):
 
     Attributes:
         state: ``{"root_position": [3], "segment_rotation": [S, 3]}`` (see
-            ``jaxtube._mechanics``).
-        multipliers: ``[m]`` Lagrange multipliers (supports, loops, control).
+            ``jaxtube._mechanics``), with ``"point_position": [P, 3]`` when the structure
+            has point nodes, lines or pulleys.
+        multipliers: ``[m]`` Lagrange multipliers (supports, loops, fixed points and
+            attachment ties, control).
         converged, iterations, result, residual: solver report (see RESULT_MESSAGES).
-        node_position: deformed node positions ``[N, 3]`` [m].
+        node_position: deformed positions of every node ``[N + P0, 3]`` [m]: tube nodes,
+            then the structure's point nodes (``Structure.node_id`` numbering).
         joint_rotation: rotation vectors of the spring joints ``[J, 3]`` [rad].
         joint_curvature: ``[J, 3]`` [1/m] (bending 1, bending 2, twist).
         joint_moment: joint frame ``[J, 3]`` [N m]; joint_moment_world: world frame.
@@ -90,6 +100,14 @@ class Solution(eqx.Module):
             (under force control: the applied force at that node along it, or 0).
         control_displacement: ``(x - X) . d`` at the controlled node [m].
         load_factor: the force-control factor (1 under displacement control).
+        point_position: the point nodes ``[P0, 3]`` [m] (free and fixed, declaration order).
+        line_length, line_tension, line_taut: per line ``[L]``: m, N (``k (l - L0)`` when
+            taut, smoothed over the tension smoothing), carries tension.
+        pulley_length, pulley_tension, pulley_taut: per pulley rope ``[Q]`` (one tension
+            on both sides).
+        fixed_point_reaction: force each fixed point exerts on the structure ``[F, 3]`` [N].
+        attachment_force: force the lines, pulleys and masses apply to each attached tube
+            node ``[A, 3]`` [N] (``Structure.elements.attachment_nodes``).
     """
 
     state: dict
@@ -109,41 +127,78 @@ class Solution(eqx.Module):
     control_force: Array
     control_displacement: Array
     load_factor: Array
+    point_position: Array
+    line_length: Array
+    line_tension: Array
+    line_taut: Array
+    pulley_length: Array
+    pulley_tension: Array
+    pulley_taut: Array
+    fixed_point_reaction: Array
+    attachment_force: Array
 
 
 def scale_loads(params: StructureParameters, factor) -> StructureParameters:
-    """Parameters with point forces, torques and line loads multiplied by ``factor``."""
+    """Parameters with point forces (on tube and point nodes), torques and line loads
+    multiplied by ``factor``."""
     return eqx.tree_at(
-        lambda p: (p.node_force, p.node_torque, p.line_load),
+        lambda p: (p.node_force, p.node_torque, p.line_load, p.elements.point_force),
         params,
-        (params.node_force * factor, params.node_torque * factor, params.line_load * factor),
+        (params.node_force * factor, params.node_torque * factor, params.line_load * factor,
+         params.elements.point_force * factor),
     )
 
 
 def total_energy(structure: Structure, params, geometry: ReferenceGeometry, state) -> Array:
-    """Total potential energy: joint strain energy plus the potential of the dead loads [J]."""
-    config = configuration(structure, geometry, state)
+    """Total potential energy: joint strain energy plus the potential of the dead loads,
+    plus lines, pulleys and point masses [J]."""
+    config = _configuration(structure, geometry, state)
     return _energy_of(structure, params, geometry, config, state)
 
 
+def _configuration(structure, geometry, state) -> Configuration | None:
+    """The tubes' configuration, or ``None`` for a structure without tubes."""
+    return configuration(structure, geometry, state) if structure.segment_count else None
+
+
 def _energy_of(structure, params, geometry, config, state) -> Array:
-    joints = spring_joints(structure, geometry, state)
-    return (strain_energy(joints, params) + shear_energy(structure, geometry, params, state)
-            + load_potential(structure, geometry, config, params, state))
+    energy = jnp.zeros(())
+    if config is not None:
+        joints = spring_joints(structure, geometry, state)
+        energy = (strain_energy(joints, params) + shear_energy(structure, geometry, params, state)
+                  + load_potential(structure, geometry, config, params, state))
+    if structure.elements.active:
+        energy = energy + element_energy(structure.elements, params.elements, params.gravity,
+                                         state["point_position"])
+    return energy
+
+
+def _node_displacement(structure, config, state, params, node: int) -> Array:
+    """``x - X`` of a global node (tube node or point node) [m], ``[3]``."""
+    if node < structure.node_count:
+        return config.node_position[node] - params.node_position[node]
+    row = node - structure.node_count
+    return state["point_position"][row] - params.elements.point_position[row]
 
 
 def _constraints(structure, config, state, params, control) -> Array:
-    c = support_constraints(structure, config, state, params)
+    parts = [jnp.zeros((0,))]
+    if config is not None:
+        parts.append(support_constraints(structure, config, state, params))
+    if structure.elements.active:
+        parts.append(element_constraints(structure.elements, params.elements,
+                                         state["point_position"],
+                                         None if config is None else config.node_position))
     if control is not None:
         node, direction, value = control
-        moved = config.node_position[node] - params.node_position[node]
-        c = jnp.concatenate([c, (jnp.dot(moved, direction) - value)[None]])
-    return c
+        moved = _node_displacement(structure, config, state, params, node)
+        parts.append((jnp.dot(moved, direction) - value)[None])
+    return jnp.concatenate(parts)
 
 
 def _objective(structure, geometry, state, params, control):
     """Energy [J] and constraints [m] from one evaluation of the kinematics."""
-    config = configuration(structure, geometry, state)
+    config = _configuration(structure, geometry, state)
     energy = _energy_of(structure, params, geometry, config, state)
     return energy, _constraints(structure, config, state, params, control)
 
@@ -162,7 +217,12 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     blocks come from ``jax.hessian`` of these small element functions, vmapped, and are
     scatter-added at static indices. Cost grows linearly with the segment count (the
     dense autodiff Hessian grows quadratically and pushes every unknown through the chain).
+    Lines and pulleys add 6 x 6 and 9 x 9 blocks over their point nodes
+    (``jaxtube._elements.element_hessian_blocks``); attachment ties are linear in the
+    segment vectors and enter through ``g_s``.
     """
+    if not structure.segment_count:
+        return _dense_from_blocks(state, _element_blocks(structure, params, state))
     phi = state["segment_rotation"]
     frame, step = segment_steps(geometry, state)
 
@@ -177,10 +237,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     step_force = jax.grad(linear_part)(step)
     body_force = matvec3(transpose3(geometry.frame), step_force)
 
-    leaves, treedef = jax.tree_util.tree_flatten(state)  # the order of ravel_pytree
-    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
-    index = treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
-                               for o, leaf in zip(offsets, leaves)])
+    index = _flat_index(state)
     rotation_index = index["segment_rotation"]  # [S, 3] positions in the flat state
 
     if "segment_shear" in state:
@@ -229,15 +286,65 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
         cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
         values.append(blocks)
 
-    n = int(offsets[-1])
-    rows = np.concatenate([r.reshape(-1) for r in rows])
-    cols = np.concatenate([c.reshape(-1) for c in cols])
-    values = jnp.concatenate([v.reshape(-1) for v in values])
+    blocks = list(zip(rows, cols, values)) + _element_blocks(structure, params, state)
+    return _dense_from_blocks(state, blocks)
+
+
+def _flat_index(state: dict) -> dict:
+    """Positions of every state entry in the flattened state (``ravel_pytree`` order)."""
+    leaves, treedef = jax.tree_util.tree_flatten(state)
+    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
+    return treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
+                              for o, leaf in zip(offsets, leaves)])
+
+
+def _element_blocks(structure, params, state) -> list:
+    """Hessian blocks ``(rows, cols, values)`` of the lines and pulleys."""
+    if not structure.elements.active:
+        return []
+    return element_hessian_blocks(structure.elements, params.elements,
+                                  state["point_position"], _flat_index(state)["point_position"])
+
+
+def _dense_from_blocks(state: dict, blocks: list) -> Array:
+    """Scatter-add Hessian blocks ``(rows, cols, values)`` into the dense ``[n, n]`` matrix."""
+    n = sum(leaf.size for leaf in jax.tree_util.tree_leaves(state))
+    dtype = jax.tree_util.tree_leaves(state)[0].dtype
+    if not blocks:
+        return jnp.zeros((n, n), dtype)
+    rows = np.concatenate([np.asarray(r).reshape(-1) for r, _, _ in blocks])
+    cols = np.concatenate([np.asarray(c).reshape(-1) for _, c, _ in blocks])
+    values = jnp.concatenate([v.reshape(-1) for _, _, v in blocks])
     return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+
+
+def _element_results(structure, params, state, multipliers, config) -> dict:
+    """Point, line, pulley and tie results of a solution (see :class:`Solution`)."""
+    topology = structure.elements
+    tube_nodes = jnp.zeros((0, 3)) if config is None else config.node_position
+    own = topology.own_point_count
+    if topology.active:
+        points = state["point_position"]
+        report = line_report(topology, params.elements, points)
+    else:
+        points = jnp.zeros((0, 3))
+        report = line_report(topology, params.elements, points)
+    start = 0 if config is None else 3 * (len(structure.supports) + len(structure.closures))
+    fixed = len(topology.fixed_points)
+    tie = multipliers[start + 3 * fixed: start + 3 * (fixed + len(topology.attachment_nodes))]
+    return dict(
+        node_position=jnp.concatenate([tube_nodes, points[:own]], axis=0),
+        point_position=points[:own],
+        fixed_point_reaction=-jnp.reshape(multipliers[start: start + 3 * fixed], (fixed, 3)),
+        attachment_force=jnp.reshape(tie, (-1, 3)),
+        **report,
+    )
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
     state = eq.state
+    if not structure.segment_count:
+        return _points_only_solution(structure, params, eq, control, factor)
     config = configuration(structure, geometry, state)
     joints = spring_joints(structure, geometry, state)
     moment, regime = joint_moments(joints, params)
@@ -258,7 +365,8 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
     if control is not None:
         node, direction, _ = control
         control_force = -eq.multipliers[-1]
-        displacement = jnp.dot(config.node_position[node] - params.node_position[node], direction)
+        displacement = jnp.dot(_node_displacement(structure, config, state, params, node),
+                               direction)
     else:
         control_force = jnp.zeros(())
         displacement = jnp.zeros(())
@@ -269,7 +377,7 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
         iterations=eq.iterations,
         result=eq.result,
         residual=eq.residual,
-        node_position=config.node_position,
+        **_element_results(structure, params, state, eq.multipliers, config),
         joint_rotation=joints.rotation,
         joint_curvature=joints.rotation / joints.tributary[:, None],
         joint_moment=moment,
@@ -281,6 +389,37 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
         control_displacement=displacement,
         load_factor=jnp.asarray(factor, dtype=float),
     )
+
+
+def _points_only_solution(structure, params, eq, control, factor) -> Solution:
+    """Solution of a structure without tubes: no joints, no supports."""
+    if control is not None:
+        node, direction, _ = control
+        control_force = -eq.multipliers[-1]
+        displacement = jnp.dot(_node_displacement(structure, None, eq.state, params, node),
+                               direction)
+    else:
+        control_force, displacement = jnp.zeros(()), jnp.zeros(())
+    none3, none = jnp.zeros((0, 3)), jnp.zeros((0,), jnp.int32)
+    return Solution(
+        state=eq.state, multipliers=eq.multipliers, converged=eq.converged,
+        iterations=eq.iterations, result=eq.result, residual=eq.residual,
+        **_element_results(structure, params, eq.state, eq.multipliers, None),
+        joint_rotation=none3, joint_curvature=none3, joint_moment=none3,
+        joint_moment_world=none3, joint_regime=none, reaction_force=none3,
+        reaction_moment=none3, control_force=control_force, control_displacement=displacement,
+        load_factor=jnp.asarray(factor, dtype=float),
+    )
+
+
+def _reference_geometry(structure, params) -> ReferenceGeometry | None:
+    return reference_geometry(structure, params) if structure.segment_count else None
+
+
+def _constraint_count(structure) -> int:
+    """Equality constraints before the control: supports, loops, fixed points, ties."""
+    return (3 * len(structure.supports) + 3 * len(structure.closures)
+            + structure.elements.constraint_count)
 
 
 def equilibrium(
@@ -297,7 +436,7 @@ def equilibrium(
     :class:`DisplacementControl`, ``displacement`` [m] is imposed (default: its last value).
     ``initial`` is a previous :class:`Solution` to warm-start from.
     """
-    geometry = reference_geometry(structure, params)
+    geometry = _reference_geometry(structure, params)
     ctrl = None
     if control is not None:
         value = control.displacements[-1] if displacement is None else displacement
@@ -332,9 +471,9 @@ def solve_path(
     """Follow a load path by stepping (``lax.scan``); returns a :class:`Solution` whose
     leaves have a leading step axis ``[K]``. Each step is warm-started from the previous
     one and reports its own convergence."""
-    geometry = reference_geometry(structure, params)
+    geometry = _reference_geometry(structure, params)
     state0 = initial_state(structure, params)
-    m_support = 3 * len(structure.supports) + 3 * len(structure.closures)
+    m_support = _constraint_count(structure)
 
     if isinstance(path, DisplacementControl):
         lam0 = jnp.zeros((m_support + 1,))

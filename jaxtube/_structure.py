@@ -34,6 +34,17 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._elements import (
+    ElementParameters,
+    ElementTopology,
+    FixedPoint,
+    Line,
+    PointMass,
+    PointNode,
+    Pulley,
+    build_elements,
+)
+from ._elements.points import DEFAULT_TENSION_SMOOTHING
 from ._laws import AbstractMomentLaw
 
 # Joint kinds (static integers): how the reference relative rotation is split.
@@ -218,13 +229,22 @@ class Structure(eqx.Module):
     closures: tuple[tuple[int, int], ...] = eqx.field(static=True)  # (segment, node) pairs
     torque_nodes: tuple[int, ...] = eqx.field(static=True)  # nodes that can carry a torque
     shear: bool = eqx.field(static=True, default=False)  # segments carry shear strains
+    # Point nodes, lines, pulleys, masses (jaxtube._elements); global ids N.. after tubes.
+    elements: ElementTopology = eqx.field(static=True, default=ElementTopology())
 
     @property
     def segment_count(self) -> int:
         return len(self.segment_tube)
 
     def node_id(self, ref) -> int:
-        """Global node index of ``"tube:index"`` / ``(tube, index)``; clear error if absent."""
+        """Global node index of ``"tube:index"`` / ``(tube, index)`` or of a point node's
+        name (point nodes follow the tube nodes); clear error if absent."""
+        if isinstance(ref, str) and ":" not in ref:
+            found = self.elements.point_id(ref.strip(), self.node_count)
+            if found is None:
+                raise ValueError(f"node {ref!r}: no point node of that name and not a "
+                                 "'tube:index' reference")
+            return found
         return _resolve_node(ref, self.tube_names, self.tube_node_ids)
 
 
@@ -245,6 +265,7 @@ class StructureParameters(eqx.Module):
             Which nodes can carry a torque is topology (decided when the structure is
             built), so structures without torques pay nothing for them.
         gravity: gravitational acceleration, ``[3]`` [m/s^2].
+        elements: point nodes, lines, pulleys and masses (``jaxtube._elements``).
     """
 
     node_position: Array
@@ -258,6 +279,7 @@ class StructureParameters(eqx.Module):
     node_torque: Array
     gravity: Array
     shear_flexibility: Array
+    elements: ElementParameters = eqx.field(default_factory=ElementParameters)
 
 
 def _parse_node_ref(ref) -> tuple[str, int]:
@@ -294,6 +316,11 @@ def build_structure(
     node_torque=None,
     gravity=(0.0, 0.0, -STANDARD_GRAVITY),
     merge_tolerance: float = 1e-9,
+    points: Sequence[PointNode | FixedPoint] = (),
+    lines: Sequence[Line] = (),
+    pulleys: Sequence[Pulley] = (),
+    point_masses: Sequence[PointMass] = (),
+    tension_smoothing: float = DEFAULT_TENSION_SMOOTHING,
 ) -> tuple[Structure, StructureParameters]:
     """Compile tubes, connections and supports into a :class:`Structure` and its parameters.
 
@@ -301,16 +328,25 @@ def build_structure(
     (N, N m) or as full ``[N, 3]`` arrays. Every node named in ``node_torque`` (or with a
     non-zero row) can carry a torque; give a zero torque to declare one for later.
 
+    Point nodes, fixed points, tension-only lines, pulleys and point masses
+    (``jaxtube._elements``) join through ``points``, ``lines``, ``pulleys`` and
+    ``point_masses``; ``tension_smoothing`` is the strain width of the lines' slack-taut
+    blend. Without supports the tube frame floats (its root is node 0 of the first tube,
+    position unknown), held by lines; a structure may also have no tube at all.
+
     Raises ``ValueError`` with a clear message for a duplicate tube name, an unknown node,
-    non-coincident connected nodes, an unknown kind, a missing support or a structure that
-    is not connected.
+    non-coincident connected nodes, an unknown kind, a structure that is not connected, or
+    a bad element (``jaxtube._elements.build``).
     """
     tubes = list(tubes)
     names = tuple(t.name for t in tubes)
     if len(set(names)) != len(names):
         raise ValueError(f"tube names must be unique, got {names}")
-    if not supports:
-        raise ValueError("a structure needs at least one support")
+    element_args = (points, lines, pulleys, point_masses, merge_tolerance, tension_smoothing)
+    if not tubes:
+        if supports or connections:
+            raise ValueError("supports and connections need tubes")
+        return _points_only_structure(gravity, element_args)
     for tube in tubes:
         if not bool(jnp.all(tube.radius > 0)):
             raise ValueError(f"tube {tube.name!r}: radius must be positive")
@@ -375,7 +411,8 @@ def build_structure(
     if len({n for n, _ in support_list}) != len(support_list):
         raise ValueError("two supports on the same node")
     support_kind = dict(support_list)
-    root, root_kind = support_list[0]
+    # No support: a floating frame (held by lines); its root is node 0 of the first tube.
+    root, root_kind = support_list[0] if support_list else (tube_node_ids[0][0], "free")
 
     def adjacent_same_tube(s1, s2):
         return seg_tube[s1] == seg_tube[s2] and abs(seg_local[s1] - seg_local[s2]) == 1
@@ -511,8 +548,12 @@ def build_structure(
         missing = [t.name for t in tubes if t.shear_flexibility is None]
         raise ValueError("shear deformation must be given for every tube or for none (tubes "
                          f"without shear_flexibility: {missing})")
+    topology, element_params, alias_forces = build_elements(
+        structure, position, *element_args)
+    for node, extra in alias_forces.items():
+        force = force.at[node].add(jnp.asarray(extra))
     structure = dataclasses.replace(structure, torque_nodes=tuple(torque_nodes),
-                                    shear=all(with_shear))
+                                    shear=all(with_shear), elements=topology)
     torque = torque[np.array(torque_nodes, dtype=np.int32)] if torque_nodes else jnp.zeros((0, 3))
     params = StructureParameters(
         node_position=jnp.asarray(position),
@@ -527,6 +568,28 @@ def build_structure(
         gravity=jnp.asarray(gravity, dtype=float),
         shear_flexibility=jnp.stack([jnp.asarray(0.0) if t.shear_flexibility is None
                                      else t.shear_flexibility for t in tubes]),
+        elements=element_params,
+    )
+    return structure, params
+
+
+def _points_only_structure(gravity, element_args) -> tuple[Structure, StructureParameters]:
+    """A structure of point nodes, lines and pulleys only (no tube, no segment)."""
+    empty = Structure(
+        tube_names=(), tube_node_ids=(), node_count=0, root_node=GROUND, segment_tube=(),
+        segment_nodes=(), segment_start=(), segment_end=(), orientation_parent=(),
+        position_parent=(), joint_kind=(), joint_spring=(), joint_node=(), joint_law_tube=(),
+        derived_frames=(), derived_kind=(), derived_node=(), derived_law_tube=(),
+        node_segment=(), supports=(), closures=(), torque_nodes=(),
+    )
+    topology, element_params, _ = build_elements(empty, np.zeros((0, 3)), *element_args)
+    structure = dataclasses.replace(empty, elements=topology)
+    params = StructureParameters(
+        node_position=jnp.zeros((0, 3)), node_radius=jnp.zeros((0,)), pressure=jnp.zeros((0,)),
+        bending_laws=(), torsion_laws=(), mass_per_length=jnp.zeros((0,)),
+        line_load=jnp.zeros((0, 3)), node_force=jnp.zeros((0, 3)),
+        node_torque=jnp.zeros((0, 3)), gravity=jnp.asarray(gravity, dtype=float),
+        shear_flexibility=jnp.zeros((0,)), elements=element_params,
     )
     return structure, params
 
