@@ -993,8 +993,9 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
             read(p, document[key], ctx)
     elements = read_element_tables(p, document, ctx)
     if "point" in document and "support" not in document and "kite" not in document \
-            and not elements.fixed and not any(isinstance(t, dict) and "fixed" in t
-                                               for t in document.get("point") or []):
+            and not elements.fixed and not any(  # a bad 'fixed' value is reported already
+                isinstance(t, dict) and t.get("fixed", False) is not False
+                for t in (document["point"] if isinstance(document["point"], list) else [])):
         p.add("support", "missing required key (expected one or more [[support]] tables, "
               "or a [[point]] with fixed = true holding the structure by lines)")
     if "support" in document and not ctx.supports and isinstance(document["support"], list):

@@ -135,7 +135,7 @@ def _read_points(p, value, ctx, spec: ElementSpec):
             p.add(where, "a fixed point takes no mass_kg or force_N (its reaction carries "
                   "whatever reaches it; put masses on the nodes that move)")
             continue
-        if None in (name, position, fixed, mass) or force is None:
+        if name is None or position is None or fixed is None or mass is None or force is None:
             continue
         name = name.strip()
         spec.point_positions[name] = position
