@@ -42,7 +42,8 @@ import numpy as np
 from .._elements import FixedPoint, Line, PointMass, PointNode, Pulley
 from .._law_scaled import ScaledLaw
 from .._laws import AbstractMomentLaw, EmpiricalBendingLaw2011, EmpiricalTorsionLaw2011
-from .._model import Solution, equilibrium
+from .._mechanics import initial_state
+from .._model import Solution, _constraint_count, equilibrium
 from .._solver import NewtonKKT
 from .._structure import (
     Connection,
@@ -252,22 +253,23 @@ def scale_gravity_and_loads(params: StructureParameters, factor) -> StructurePar
 def hang_kite(structure: Structure, params: StructureParameters, steps: int = 1,
               solver: NewtonKKT = NewtonKKT()) -> Solution:
     """Hang a structure from the undeformed shape: gravity and point loads are stepped up
-    to full in ``steps`` equal increments (``lax.scan``, each step warm-started from the
-    previous); returns the :class:`Solution` of every step (leading axis ``[steps]``), each
-    with its own convergence report. Traceable: ``jax.jit(partial(hang_kite, structure))``.
+    to full in ``steps`` equal increments (``lax.scan`` over one traced solve, each step
+    warm-started from the previous); returns the :class:`Solution` of every step (leading
+    axis ``[steps]``; ``load_factor`` is the step's fraction of gravity and loads), each with
+    its own convergence report. Traceable: ``jax.jit(partial(hang_kite, structure))``.
     """
     factors = jnp.arange(1, steps + 1, dtype=float) / steps
-    first = equilibrium(structure, scale_gravity_and_loads(params, factors[0]), solver=solver)
-    if steps == 1:
-        return jax.tree_util.tree_map(lambda x: x[None], first)
+    start = _WarmStart(initial_state(structure, params),
+                       jnp.zeros((_constraint_count(structure),)))
 
     def step(carry, factor):
         sol = equilibrium(structure, scale_gravity_and_loads(params, factor), initial=carry,
                           solver=solver)
+        sol = eqx.tree_at(lambda s: s.load_factor, sol, factor)
         return _WarmStart(sol.state, sol.multipliers), sol
 
-    _, rest = jax.lax.scan(step, _WarmStart(first.state, first.multipliers), factors[1:])
-    return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), first, rest)
+    _, solutions = jax.lax.scan(step, start, factors)
+    return solutions
 
 
 def write_positions_csv(path, positions) -> None:

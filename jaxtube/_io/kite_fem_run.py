@@ -67,8 +67,9 @@ def _write_lines(path, rows) -> None:
 
 
 def weight_and_reactions(imported, solution, step: int = -1) -> dict:
-    """Total weight and applied loads [N], the fixed points' reactions [N] and the moment
-    balance about the origin [N m] at one step (all in kite_fem's frame)."""
+    """Total weight and applied loads [N] (at the step's ``load_factor``), the fixed points'
+    reactions [N] and the moment balance about the origin [N m] at one step of
+    :func:`hang_kite` (all in kite_fem's frame)."""
     params = imported.params
     structure = imported.structure
     from .._plot_elements import point_row_nodes
@@ -76,13 +77,14 @@ def weight_and_reactions(imported, solution, step: int = -1) -> dict:
     rows = point_row_nodes(structure.elements, structure.node_count)
     position = np.asarray(solution.node_position)[step]
     mass_nodes = rows[np.asarray(structure.elements.mass_points, dtype=int)]
+    factor = float(np.atleast_1d(np.asarray(solution.load_factor))[step])
     mass = np.asarray(params.elements.point_mass, dtype=float)
-    gravity = np.asarray(params.gravity, dtype=float)
+    gravity = factor * np.asarray(params.gravity, dtype=float)
     weight = mass[:, None] * gravity[None, :]
     loads = [(mass_nodes, weight)]
-    tube_force = np.asarray(params.node_force, dtype=float)
+    tube_force = factor * np.asarray(params.node_force, dtype=float)
     loads.append((np.arange(tube_force.shape[0]), tube_force))
-    own = np.asarray(params.elements.point_force, dtype=float)
+    own = factor * np.asarray(params.elements.point_force, dtype=float)
     loads.append((structure.node_count + np.arange(own.shape[0]), own))
     applied = sum(f.sum(axis=0) for _, f in loads)
     moment = sum(np.cross(position[n], f).sum(axis=0) for n, f in loads)
@@ -152,6 +154,8 @@ def simulate_kite_fem(model_path, out, *, pressure_bar=None, bending_scale=None,
         "weight_and_loads_N": balance["weight_and_loads_N"].tolist(),
         "suspension_reactions_N": {str(n): r.tolist() for n, r in
                                    zip(imported.suspension, balance["reaction_N"])},
+        "applied_moment_Nm": balance["applied_moment_Nm"].tolist(),
+        "reaction_moment_Nm": balance["reaction_moment_Nm"].tolist(),
         "taut": taut,
         "slack": slack,
         "compile_seconds": round(compiled_at - loaded, 3),
