@@ -22,10 +22,12 @@ import numpy as np
 from jax import Array
 
 from ._elements import (
+    dense_from_blocks,
     element_constraints,
     element_energy,
     element_hessian_blocks,
-    line_report,
+    element_results,
+    state_index,
 )
 from ._mechanics import (
     Configuration,
@@ -222,7 +224,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     segment vectors and enter through ``g_s``.
     """
     if not structure.segment_count:
-        return _dense_from_blocks(state, _element_blocks(structure, params, state))
+        return dense_from_blocks(state, _element_blocks(structure, params, state))
     phi = state["segment_rotation"]
     frame, step = segment_steps(geometry, state)
 
@@ -237,7 +239,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     step_force = jax.grad(linear_part)(step)
     body_force = matvec3(transpose3(geometry.frame), step_force)
 
-    index = _flat_index(state)
+    index = state_index(state)
     rotation_index = index["segment_rotation"]  # [S, 3] positions in the flat state
 
     if "segment_shear" in state:
@@ -287,15 +289,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
         values.append(blocks)
 
     blocks = list(zip(rows, cols, values)) + _element_blocks(structure, params, state)
-    return _dense_from_blocks(state, blocks)
-
-
-def _flat_index(state: dict) -> dict:
-    """Positions of every state entry in the flattened state (``ravel_pytree`` order)."""
-    leaves, treedef = jax.tree_util.tree_flatten(state)
-    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
-    return treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
-                              for o, leaf in zip(offsets, leaves)])
+    return dense_from_blocks(state, blocks)
 
 
 def _element_blocks(structure, params, state) -> list:
@@ -303,42 +297,7 @@ def _element_blocks(structure, params, state) -> list:
     if not structure.elements.active:
         return []
     return element_hessian_blocks(structure.elements, params.elements,
-                                  state["point_position"], _flat_index(state)["point_position"])
-
-
-def _dense_from_blocks(state: dict, blocks: list) -> Array:
-    """Scatter-add Hessian blocks ``(rows, cols, values)`` into the dense ``[n, n]`` matrix."""
-    n = sum(leaf.size for leaf in jax.tree_util.tree_leaves(state))
-    dtype = jax.tree_util.tree_leaves(state)[0].dtype
-    if not blocks:
-        return jnp.zeros((n, n), dtype)
-    rows = np.concatenate([np.asarray(r).reshape(-1) for r, _, _ in blocks])
-    cols = np.concatenate([np.asarray(c).reshape(-1) for _, c, _ in blocks])
-    values = jnp.concatenate([v.reshape(-1) for _, _, v in blocks])
-    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
-
-
-def _element_results(structure, params, state, multipliers, config) -> dict:
-    """Point, line, pulley and tie results of a solution (see :class:`Solution`)."""
-    topology = structure.elements
-    tube_nodes = jnp.zeros((0, 3)) if config is None else config.node_position
-    own = topology.own_point_count
-    if topology.active:
-        points = state["point_position"]
-        report = line_report(topology, params.elements, points)
-    else:
-        points = jnp.zeros((0, 3))
-        report = line_report(topology, params.elements, points)
-    start = 0 if config is None else 3 * (len(structure.supports) + len(structure.closures))
-    fixed = len(topology.fixed_points)
-    tie = multipliers[start + 3 * fixed: start + 3 * (fixed + len(topology.attachment_nodes))]
-    return dict(
-        node_position=jnp.concatenate([tube_nodes, points[:own]], axis=0),
-        point_position=points[:own],
-        fixed_point_reaction=-jnp.reshape(multipliers[start: start + 3 * fixed], (fixed, 3)),
-        attachment_force=jnp.reshape(tie, (-1, 3)),
-        **report,
-    )
+                                  state["point_position"], state_index(state)["point_position"])
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
@@ -377,7 +336,8 @@ def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
         iterations=eq.iterations,
         result=eq.result,
         residual=eq.residual,
-        **_element_results(structure, params, state, eq.multipliers, config),
+        **element_results(structure, params, state, eq.multipliers,
+                           None if config is None else config.node_position),
         joint_rotation=joints.rotation,
         joint_curvature=joints.rotation / joints.tributary[:, None],
         joint_moment=moment,
@@ -404,7 +364,7 @@ def _points_only_solution(structure, params, eq, control, factor) -> Solution:
     return Solution(
         state=eq.state, multipliers=eq.multipliers, converged=eq.converged,
         iterations=eq.iterations, result=eq.result, residual=eq.residual,
-        **_element_results(structure, params, eq.state, eq.multipliers, None),
+        **element_results(structure, params, eq.state, eq.multipliers, None),
         joint_rotation=none3, joint_curvature=none3, joint_moment=none3,
         joint_moment_world=none3, joint_regime=none, reaction_force=none3,
         reaction_moment=none3, control_force=control_force, control_displacement=displacement,

@@ -29,6 +29,7 @@ Tension-only law: a C1 quadratic blend over a strain width ``delta`` around the 
 ``lines.py`` for why a smooth energy and not an active set.
 """
 
+from .assembly import dense_from_blocks as dense_from_blocks
 from .assembly import (
     element_constraints as element_constraints,
 )
@@ -38,12 +39,14 @@ from .assembly import (
 from .assembly import (
     element_hessian_blocks as element_hessian_blocks,
 )
+from .assembly import element_results as element_results
 from .assembly import (
     initial_point_position as initial_point_position,
 )
 from .assembly import (
     line_report as line_report,
 )
+from .assembly import state_index as state_index
 from .build import build_elements as build_elements
 from .lines import Line as Line
 from .lines import Pulley as Pulley

@@ -151,3 +151,50 @@ def line_report(topology: ElementTopology, elements: ElementParameters,
         "pulley_tension": pulley_tension,
         "pulley_taut": pulley_tension > 0.0,
     }
+
+
+def state_index(state: dict) -> dict:
+    """Positions of every state entry in the flattened state (``ravel_pytree`` order): the
+    same PyTree with integer arrays of the entries' shapes."""
+    leaves, treedef = jax.tree_util.tree_flatten(state)
+    offsets = np.cumsum([0] + [leaf.size for leaf in leaves])
+    return treedef.unflatten([np.arange(o, o + leaf.size).reshape(leaf.shape)
+                              for o, leaf in zip(offsets, leaves)])
+
+
+def dense_from_blocks(state: dict, blocks: list) -> Array:
+    """Scatter-add Hessian blocks ``(rows, cols, values)`` into the dense ``[n, n]`` matrix
+    over the flattened ``state`` (the interim assembly until the sparse KKT path)."""
+    leaves = jax.tree_util.tree_leaves(state)
+    n = sum(leaf.size for leaf in leaves)
+    if not blocks:
+        return jnp.zeros((n, n), leaves[0].dtype)
+    rows = np.concatenate([np.asarray(r).reshape(-1) for r, _, _ in blocks])
+    cols = np.concatenate([np.asarray(c).reshape(-1) for _, c, _ in blocks])
+    values = jnp.concatenate([v.reshape(-1) for _, _, v in blocks])
+    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+
+
+def element_results(structure, params, state: dict, multipliers: Array,
+                    tube_node_position: Array | None) -> dict[str, Array]:
+    """Point, line, pulley and tie results of a solution (fields of ``Solution``).
+
+    The element multipliers follow those of the supports and loops (3 each) when the
+    structure has tubes: fixed points, then ties (``element_constraints``).
+    """
+    topology = structure.elements
+    tube_nodes = jnp.zeros((0, 3)) if tube_node_position is None else tube_node_position
+    own = topology.own_point_count
+    points = state["point_position"] if topology.active else jnp.zeros((0, 3))
+    report = line_report(topology, params.elements, points)
+    start = (0 if tube_node_position is None
+             else 3 * (len(structure.supports) + len(structure.closures)))
+    fixed = len(topology.fixed_points)
+    tie = multipliers[start + 3 * fixed: start + 3 * (fixed + len(topology.attachment_nodes))]
+    return dict(
+        node_position=jnp.concatenate([tube_nodes, points[:own]], axis=0),
+        point_position=points[:own],
+        fixed_point_reaction=-jnp.reshape(multipliers[start: start + 3 * fixed], (fixed, 3)),
+        attachment_force=jnp.reshape(tie, (-1, 3)),
+        **report,
+    )
