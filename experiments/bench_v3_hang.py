@@ -16,7 +16,6 @@ when ``--write`` is given.
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import statistics
 import time
@@ -26,6 +25,7 @@ import jax
 import numpy as np
 
 import jaxtube as jt
+from jaxtube._io.kite_fem import hang_program, undeformed_start
 from jaxtube._io.kite_fem_run import line_table, weight_and_reactions
 
 HERE = Path(__file__).parent
@@ -41,7 +41,11 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--max-steps", type=int, default=None,
                         help="Newton iteration cap (NewtonKKT.max_steps)")
+    parser.add_argument("--restarts", type=int, default=8,
+                        help="runs of max_steps Newton steps after the first, until converged")
     parser.add_argument("--write", action="store_true")
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="write the hung kite's 3-D figure (PNG) here")
     args = parser.parse_args()
 
     started = time.perf_counter()
@@ -49,14 +53,18 @@ def main() -> None:
                                   bending_scale=args.bending_scale)
     imported_at = time.perf_counter()
     solver = jt.NewtonKKT() if args.max_steps is None else jt.NewtonKKT(max_steps=args.max_steps)
-    hang = jax.jit(functools.partial(jt.hang_kite, imported.structure, steps=args.steps,
-                                     solver=solver))
-    compiled = hang.lower(imported.params).compile()
+    hang = jax.jit(hang_program(imported.structure, args.steps, solver))
+    start = undeformed_start(imported.structure, imported.params)
+    compiled = hang.lower(imported.params, start).compile()
     compiled_at = time.perf_counter()
+    print(f"imported in {imported_at - started:.1f} s, compiled in "
+          f"{compiled_at - imported_at:.1f} s", flush=True)
     times = []
     for _ in range(args.repeats):
         t0 = time.perf_counter()
-        solution = jax.block_until_ready(compiled(imported.params))
+        solution, runs = jt.hang_until_converged(
+            imported.structure, imported.params, restarts=args.restarts, compiled=compiled)
+        jax.block_until_ready(solution)
         times.append(time.perf_counter() - t0)
     converged = np.asarray(solution.converged)
     iterations = np.asarray(solution.iterations)
@@ -80,9 +88,11 @@ def main() -> None:
         f"{len(s.elements.line_ends)} lines, {len(s.elements.pulley_ends)} pulleys, "
         f"{balance['total_mass_kg']:.4f} kg",
         f"import {imported_at - started:.2f} s, compile {compiled_at - imported_at:.1f} s",
-        f"warm solve: median {statistics.median(times):.3f} s over {args.repeats} "
+        f"warm hang (all runs): median {statistics.median(times):.3f} s over {args.repeats} "
         f"(min {min(times):.3f}, max {max(times):.3f}); {args.steps} gravity step(s)",
-        f"converged per step: {converged.tolist()}; Newton iterations {iterations.tolist()}; "
+        f"runs of at most {solver.max_steps} Newton steps: {runs}; last run: converged per "
+        f"step {converged.tolist()}, Newton iterations {iterations.tolist()}, "
+        f"result {[jt.RESULT_MESSAGES.get(int(c), '?') for c in np.asarray(solution.result)]}; "
         f"residual {np.asarray(solution.residual).tolist()}",
         f"weight and loads {np.round(balance['weight_and_loads_N'], 4).tolist()} N; reactions "
         f"sum {np.round(balance['reaction_sum_N'], 4).tolist()} N",
@@ -96,6 +106,19 @@ def main() -> None:
         f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; jax {jax.__version__}; "
         "dense KKT path",
     ]
+    if args.figure is not None:
+        from jaxtube._io.kite_fem_run import reference_positions
+        from jaxtube._plot import deformed_shape_figure
+
+        figure = deformed_shape_figure(
+            s, reference_positions(imported), np.asarray(solution.node_position), converged,
+            line_taut=np.asarray(solution.line_taut),
+            pulley_taut=np.asarray(solution.pulley_taut),
+            point_mass=np.asarray(imported.params.elements.point_mass),
+            gravity=np.asarray(imported.params.gravity), intermediate=0,
+            title="V3 kite hung from nodes 82 and 116 (kite_fem frame, gravity down the page)")
+        figure.savefig(args.figure, dpi=130)
+        np.save(args.figure.with_suffix(".npy"), np.asarray(solution.node_position)[-1])
     text = "\n".join(lines)
     print(text)
     if args.write:

@@ -46,6 +46,7 @@ from ._elements import PointNode as PointNode
 from ._elements import Pulley as Pulley
 from ._io.kite_fem import KiteFemImport as KiteFemImport
 from ._io.kite_fem import hang_kite as hang_kite
+from ._io.kite_fem import hang_until_converged as hang_until_converged
 from ._io.kite_fem import import_kite_fem as import_kite_fem
 from ._io.kite_fem import write_positions_csv as write_positions_csv
 from ._io.kite_fem_reader import KiteFemFormatError as KiteFemFormatError

@@ -237,9 +237,23 @@ def import_kite_fem(
                          tube_names=tuple(t.name for t in tubes), spring_group=groups)
 
 
-class _WarmStart(eqx.Module):
+class HangStart(eqx.Module):
+    """Where a hang starts: a state PyTree and the constraint multipliers ``[m]``."""
+
     state: dict
     multipliers: jax.Array
+
+
+def undeformed_start(structure: Structure, params: StructureParameters) -> HangStart:
+    """The undeformed shape with zero multipliers."""
+    return HangStart(initial_state(structure, params),
+                     jnp.zeros((_constraint_count(structure),)))
+
+
+def restart_from(solution: Solution) -> HangStart:
+    """Start again from the last step of a hang (more Newton steps without recompiling)."""
+    return HangStart(jax.tree_util.tree_map(lambda x: x[-1], solution.state),
+                     solution.multipliers[-1])
 
 
 def scale_gravity_and_loads(params: StructureParameters, factor) -> StructureParameters:
@@ -251,25 +265,58 @@ def scale_gravity_and_loads(params: StructureParameters, factor) -> StructurePar
 
 
 def hang_kite(structure: Structure, params: StructureParameters, steps: int = 1,
-              solver: NewtonKKT = NewtonKKT()) -> Solution:
-    """Hang a structure from the undeformed shape: gravity and point loads are stepped up
-    to full in ``steps`` equal increments (``lax.scan`` over one traced solve, each step
-    warm-started from the previous); returns the :class:`Solution` of every step (leading
-    axis ``[steps]``; ``load_factor`` is the step's fraction of gravity and loads), each with
-    its own convergence report. Traceable: ``jax.jit(partial(hang_kite, structure))``.
+              solver: NewtonKKT = NewtonKKT(), start: HangStart | None = None) -> Solution:
+    """Hang a structure: gravity and point loads are stepped up to full in ``steps`` equal
+    increments (``lax.scan`` over one traced solve, each step warm-started from the
+    previous), from ``start`` (default: the undeformed shape, :func:`undeformed_start`).
+    Returns the :class:`Solution` of every step (leading axis ``[steps]``; ``load_factor``
+    is the step's fraction of gravity and loads), each with its own convergence report.
+    Traceable: ``jax.jit(partial(hang_kite, structure))``; see :func:`hang_until_converged`.
     """
     factors = jnp.arange(1, steps + 1, dtype=float) / steps
-    start = _WarmStart(initial_state(structure, params),
-                       jnp.zeros((_constraint_count(structure),)))
+    if start is None:
+        start = undeformed_start(structure, params)
 
     def step(carry, factor):
         sol = equilibrium(structure, scale_gravity_and_loads(params, factor), initial=carry,
                           solver=solver)
         sol = eqx.tree_at(lambda s: s.load_factor, sol, factor)
-        return _WarmStart(sol.state, sol.multipliers), sol
+        return HangStart(sol.state, sol.multipliers), sol
 
     _, solutions = jax.lax.scan(step, start, factors)
     return solutions
+
+
+def hang_program(structure: Structure, steps: int = 1, solver: NewtonKKT = NewtonKKT()):
+    """``(params, start) -> Solution``: :func:`hang_kite` of ``structure`` with the start
+    as a traced argument (jit it once; :func:`hang_until_converged` restarts it)."""
+
+    def run(params, start):
+        return hang_kite(structure, params, steps, solver, start)
+
+    return run
+
+
+def hang_until_converged(structure: Structure, params: StructureParameters, steps: int = 1,
+                         solver: NewtonKKT = NewtonKKT(), restarts: int = 8, compiled=None):
+    """Host loop around :func:`hang_kite`: while the last step has not converged, solve
+    again from where the previous run stopped (each run is ``solver.max_steps`` more Newton
+    steps; one compiled program). A structure hung from an arbitrary undeformed shape may
+    have to swing far and pull slack lines taut, which takes Newton many steps.
+
+    Returns ``(solution, runs)``: the last run's :class:`Solution` (its convergence flags
+    are the truth: a run that never converged is reported so) and the number of runs.
+    ``compiled``: a ``(params, start) -> Solution`` function to reuse (default: jitted
+    here).
+    """
+    if compiled is None:
+        compiled = jax.jit(hang_program(structure, steps, solver))
+    solution = compiled(params, undeformed_start(structure, params))
+    runs = 1
+    while runs <= restarts and not bool(np.asarray(solution.converged)[-1]):
+        solution = compiled(params, restart_from(solution))
+        runs += 1
+    return solution, runs
 
 
 def write_positions_csv(path, positions) -> None:

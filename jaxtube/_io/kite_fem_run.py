@@ -21,7 +21,6 @@ named), 2 for a bad model file.
 from __future__ import annotations
 
 import csv
-import functools
 import json
 import sys
 import time
@@ -31,7 +30,13 @@ import jax
 import numpy as np
 
 from .._model import check_converged
-from .kite_fem import hang_kite, import_kite_fem, write_positions_csv
+from .kite_fem import (
+    hang_program,
+    hang_until_converged,
+    import_kite_fem,
+    undeformed_start,
+    write_positions_csv,
+)
 from .kite_fem_reader import KiteFemFormatError, read_kite_fem
 
 
@@ -97,9 +102,11 @@ def weight_and_reactions(imported, solution, step: int = -1) -> dict:
 
 
 def simulate_kite_fem(model_path, out, *, pressure_bar=None, bending_scale=None, steps=1,
-                      centre_load_kg=0.0, tip_load_kg=0.0, quiet=False) -> int:
+                      centre_load_kg=0.0, tip_load_kg=0.0, restarts=8, quiet=False) -> int:
     """Hang the kite_fem model at ``model_path`` and write the outputs into ``out``
-    (module docstring); returns the exit code."""
+    (module docstring); returns the exit code. ``restarts``: further runs of Newton steps
+    from where the last one stopped while it has not converged
+    (:func:`~jaxtube._io.kite_fem.hang_until_converged`)."""
     from .._cli import write_directory  # the CLI's atomic writer
     from .._plot import deformed_shape_figure
 
@@ -120,12 +127,14 @@ def simulate_kite_fem(model_path, out, *, pressure_bar=None, bending_scale=None,
         f"({structure.segment_count} segments), {len(model.spring_kind)} lines, "
         f"{model.pulley_nodes.shape[0]} pulleys, {model.total_mass:.4g} kg; suspension "
         f"{', '.join(map(str, imported.suspension))}")
-    hang = jax.jit(functools.partial(hang_kite, structure, steps=steps))
+    hang = jax.jit(hang_program(structure, steps))
     loaded = time.perf_counter()
-    compiled = hang.lower(params).compile()
+    compiled = hang.lower(params, undeformed_start(structure, params)).compile()
     compiled_at = time.perf_counter()
     say(f"compiled in {compiled_at - loaded:.1f} s; hanging in {steps} gravity step(s) ...")
-    solution = jax.block_until_ready(compiled(params))
+    solution, runs = hang_until_converged(structure, params, steps=steps, restarts=restarts,
+                                          compiled=compiled)
+    solution = jax.block_until_ready(solution)
     solved_at = time.perf_counter()
     converged = np.atleast_1d(np.asarray(solution.converged))
     failure = None
@@ -144,6 +153,7 @@ def simulate_kite_fem(model_path, out, *, pressure_bar=None, bending_scale=None,
     summary = {
         "model": str(model_path),
         "converged": bool(converged.all()),
+        "newton_runs": runs,
         "steps": [{"step": k + 1, "converged": bool(c),
                    "iterations": int(np.atleast_1d(np.asarray(solution.iterations))[k]),
                    "residual": float(np.atleast_1d(np.asarray(solution.residual))[k])}
