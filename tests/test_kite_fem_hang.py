@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from jaxtube._io.kite_fem_run import line_table, weight_and_reactions
+from jaxtube._io.kite_fem_run import line_table, reference_positions, weight_and_reactions
+from jaxtube._plot import deformed_shape_figure
 
 from .kite_fem_mini import SUSPENSION, mini_kite_arrays, write_mini_kite
 
@@ -87,6 +88,22 @@ def test_mini_kite_hangs_in_balance(mini):
     assert clear.sum() >= 4
     np.testing.assert_allclose(tension[clear], (model.spring_stiffness * stretch)[clear],
                                rtol=1e-12)
+    # The shape figure draws the lines (taut and slack apart), the rope, masses, fixed points.
+    figure = deformed_shape_figure(
+        imported.structure, reference_positions(imported), np.asarray(solution.node_position),
+        np.asarray(solution.converged), line_taut=np.asarray(solution.line_taut),
+        pulley_taut=np.asarray(solution.pulley_taut),
+        point_mass=np.asarray(imported.params.elements.point_mass),
+        gravity=np.asarray(imported.params.gravity))
+    labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
+    expected = {f"line, taut ({int(taut[5:].sum())})", "rope over pulley, taut (1)", "pulley",
+                "fixed point", "point masses (10, 1 kg)"}
+    if np.any(taut[:5]):
+        expected.add(f"canopy, taut ({int(taut[:5].sum())})")
+    if not np.all(taut[:5]):
+        expected.add(f"canopy, slack ({int((~taut[:5]).sum())})")
+    assert expected <= set(labels), labels
+    assert figure.axes[0].zaxis_inverted()  # gravity (+z) down the page
 
 
 def test_mini_kite_gradients(mini):
