@@ -94,12 +94,13 @@ def draw_elements(ax, structure, node_position, *, line_taut=None, pulley_taut=N
                               color="tab:purple", label="pulley"))
     masses = parts["mass"]
     if len(masses):
+        # Small dots: a kite has hundreds of lumped masses, which must not hide the frame.
         if point_mass is None:
-            mass, area = None, np.full(len(masses), 8.0)
+            mass, area = None, np.full(len(masses), 4.0)
         else:
             mass = np.asarray(point_mass, dtype=float).reshape(-1)
-            area = 4.0 + 60.0 * mass / max(float(mass.max()), 1e-12)
-        ax.scatter(*masses.T, s=area, color=MASS_COLOUR, alpha=0.6, depthshade=False,
+            area = 2.0 + 30.0 * mass / max(float(mass.max()), 1e-12)
+        ax.scatter(*masses.T, s=area, color=MASS_COLOUR, alpha=0.45, depthshade=False,
                    linewidths=0)
         handles.append(Line2D([], [], linestyle="", marker="o", color=MASS_COLOUR, alpha=0.6,
                               label=f"point masses ({len(masses)}"
