@@ -107,3 +107,15 @@ def test_solved_state_positions():
     # Suspension points 82 and 116 held where the model has them.
     model = jt.read_kite_fem(V3_MODEL)
     np.testing.assert_allclose(positions[[82, 116]], model.node_position[[82, 116]], atol=1e-9)
+
+
+def test_cli_refuses_bad_kite_fem_input(tmp_path, capsys):
+    from jaxtube._cli import main
+
+    out = tmp_path / "out"
+    path = _broken_copy(tmp_path, _set("spring_matrix", 12, 5, "elastic"))
+    assert main(["simulate", "--kite-fem", str(path), "--out", str(out)]) == 2
+    assert "row 12, column 5 (kind): unknown spring kind 'elastic'" in capsys.readouterr().err
+    assert main(["simulate", "--out", str(out)]) == 2
+    assert "give either a spec file or --kite-fem" in capsys.readouterr().err
+    assert not out.exists()  # nothing written
