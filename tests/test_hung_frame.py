@@ -26,10 +26,12 @@ FACTORS = np.array([0.5, 1.0, 1.5])
 
 
 def hung_arch():
-    """A U-shaped arch (8 segments, spline law at 0.2 bar) hanging from fixed points L and
-    R: its left end and a second node through a rope over a pulley point hung from L, its
-    right end by a line from R; a ballast point hangs from the bottom node."""
-    law = jt.SplineLaw.from_tension_field(150e3, 2e4, 0.04, form="paper")
+    """A U-shaped arch (8 segments, r = 40 mm, 0.2 bar) hanging from fixed points L and R:
+    its left end and a second node through a rope over a pulley point hung from L, its
+    right end by a line from R; a ballast point hangs from the bottom node. Breukels' 2011
+    law, whose bending stiffness grows with the pressure (a tension-field tube's does not
+    before it wrinkles, which would leave the pressure gradient zero)."""
+    law = jt.EmpiricalBendingLaw2011()
     arch = jt.arc_tube("arch", (0, 0, 0), 0.5, np.pi, 2 * np.pi, 8, 0.04, 2e4, law,
                        torsion_law=jt.LinearLaw(20.0), normal=(0, -1, 0),
                        mass_per_length=MASS_PER_LENGTH)
