@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" projection)
 
+from ._plot_elements import draw_elements
 from ._structure import Structure
 
 REGIME_NAMES = ("unwrinkled", "wrinkled", "collapsed")
@@ -79,7 +80,8 @@ def _node_regimes(joint_node, joint_regime, node_count: int) -> np.ndarray:
 def deformed_shape_figure(
     structure: Structure, reference_position, node_position, converged, *,
     joint_node=(), joint_regime=None, point_force=None, control=None, distributed=None,
-    intermediate: int = 3, title: str = "",
+    intermediate: int = 3, title: str = "", line_taut=None, pulley_taut=None,
+    point_mass=None, gravity=None,
 ) -> Figure:
     """Undeformed (grey) and deformed shape in 3-D, with supports and loads.
 
@@ -99,6 +101,12 @@ def deformed_shape_figure(
         distributed: ``[K, T, 3]`` distributed load per tube [N/m] (line load plus
             self-weight), drawn as small teal arrows at the segment midpoints of the drawn
             step, scaled on their own.
+        line_taut, pulley_taut: ``[K, L]``, ``[K, Q]`` bool: the state of each line and
+            pulley rope. A structure with point nodes, lines, pulleys or masses has them
+            drawn at the drawn step (``jaxtube._plot_elements``); node arrays then hold every
+            node (tube nodes, then point nodes). point_mass: ``[M]`` [kg] sizes the masses.
+        gravity: ``[3]``; when it points along +z the z axis is turned so that it points
+            down on the page (a kite hung in kite_fem's frame).
     """
     reference = np.asarray(reference_position, dtype=float)
     positions = np.asarray(node_position, dtype=float)
@@ -146,6 +154,13 @@ def deformed_shape_figure(
                     handles.append(Line2D([], [], linestyle="", marker="o", color=colour,
                                           label=f"joint {name}"))
     current = positions[shown] if shown is not None else reference
+    if structure.elements.active:
+        handles += draw_elements(
+            ax, structure, current,
+            line_taut=None if line_taut is None or shown is None else np.asarray(line_taut)[shown],
+            pulley_taut=(None if pulley_taut is None or shown is None
+                         else np.asarray(pulley_taut)[shown]),
+            point_mass=point_mass)
 
     for node, kind in structure.supports:
         marker = "s" if kind == "clamped" else "^"
@@ -207,6 +222,8 @@ def deformed_shape_figure(
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)
     ax.set_box_aspect((1.0, 1.0, 1.0))
+    if gravity is not None and np.asarray(gravity, dtype=float)[2] > 0:
+        ax.invert_zaxis()  # gravity down on the page
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")

@@ -91,7 +91,7 @@ def test_kite_spec_errors_are_reported_together():
            .replace("tip_radius_m = 0.04\n", "")
            .replace('tip_support = "pinned"', 'tip_support = "glued"'))
     with pytest.raises(SpecError) as error:
-        parse_spec(bad + "\n[[point_mass]]\nnode = 'le:centre'\nmass_kg = 1\n",
+        parse_spec(bad + "\n[[point_mass]]\nnode = 'le:centre'\nmass_kg = -1\n",
                    source="kite.toml")
     lines = error.value.problems
     expected = [
@@ -100,7 +100,7 @@ def test_kite_spec_errors_are_reported_together():
         r"kite\.leading_edge\.tip_radius_m: missing required key",
         r"kite\.strut\[0\]\.chrod_m: unknown key; did you mean 'chord_m'\?",
         r"kite\.strut\[0\]\.span_fraction: expected a fraction .* found 1\.2",
-        r"point_mass: reserved for point masses in a later spec format version",
+        r"point_mass\[0\]\.mass_kg: expected a positive number, found -1",
     ]
     for pattern in expected:
         assert any(re.search(pattern, line) for line in lines), (pattern, lines)

@@ -3,6 +3,8 @@
 ``jaxtube simulate SPEC.toml --out DIR [--steps N] [--quiet]``: load a TOML spec (format
   in :mod:`jaxtube.load_spec`), compile and run the load path, and write ``path.csv``,
   ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
+  ``jaxtube simulate --kite-fem initial.npz --out DIR [--pressure-bar P] [--bending-scale S]``
+  hangs a kite_fem model instead (:mod:`fitting._cli.kite_fem`).
 Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
 are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).
 
@@ -44,7 +46,8 @@ import jaxtube as jt
 
 from .._calibrate.parameters_file import load_law
 from .._json import finite_or_none, write_json
-from .common import bad_output_directory, positive_int, write_directory
+from .common import bad_output_directory, positive_float, positive_int, write_directory
+from .kite_fem import simulate_kite_fem
 
 OUTPUT_FILES = ("path.csv", "force_deflection.png", "deformed_shape.png", "summary.json")
 CSV_COLUMNS = (
@@ -65,7 +68,17 @@ def add_simulate(subparsers) -> None:
         "simulate", help="run the load path of a TOML spec and write results",
         description="Load a TOML structure spec, follow its load path and write path.csv, "
                     "force_deflection.png, deformed_shape.png and summary.json into --out.")
-    parser.add_argument("spec", type=Path, help="the TOML spec file")
+    parser.add_argument("spec", type=Path, nargs="?", default=None,
+                        help="the TOML spec file (or --kite-fem)")
+    parser.add_argument("--kite-fem", type=Path, default=None, metavar="NPZ",
+                        help="instead of a spec: hang a kite_fem model (initial.npz) from its "
+                             "suspension nodes under gravity and write positions.csv, "
+                             "lines.csv, kite_shape.png, summary.json "
+                             "(fitting._cli.kite_fem); --steps: gravity steps (default 1)")
+    parser.add_argument("--pressure-bar", type=positive_float, default=None,
+                        help="with --kite-fem: tube pressure [bar] (default: the file's)")
+    parser.add_argument("--bending-scale", type=positive_float, default=None,
+                        help="with --kite-fem: factor on Breukels' 2011 bending law")
     parser.add_argument("--out", type=Path, required=True,
                         help="output directory (created; existing files of the same names "
                              "are replaced, other files are left alone)")
@@ -106,6 +119,13 @@ def _simulate(args) -> int:
     out = Path(args.out)
     if bad_output_directory(out):
         return 2
+    if (args.spec is None) == (args.kite_fem is None):
+        report.problem("error: give either a spec file or --kite-fem NPZ")
+        return 2
+    if args.kite_fem is not None:
+        return simulate_kite_fem(args.kite_fem, out, pressure_bar=args.pressure_bar,
+                                 bending_scale=args.bending_scale, steps=args.steps or 1,
+                                 quiet=args.quiet)
     try:
         spec = jt.load_spec(args.spec, steps=args.steps)
     except jt.SpecError as error:

@@ -34,5 +34,6 @@ from .empirical import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from .empirical import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011
 from .linear import LinearLaw as LinearLaw
 from .linear import ReinforcedLaw as ReinforcedLaw
+from .scaled import ScaledLaw as ScaledLaw
 from .spline import SplineLaw as SplineLaw
 from .tension_field import TensionFieldLaw as TensionFieldLaw

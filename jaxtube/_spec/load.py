@@ -33,6 +33,7 @@ from .._structure.structure import (
 from .._units import unit_factor
 from .check import SpecError, check_keys, format_point, key_path
 from .context import SpecContext
+from .elements import ELEMENT_TABLES, read_element_tables
 from .kite import read_kite
 from .tables import (
     FORMAT_VERSION,
@@ -105,13 +106,9 @@ TABLE_READERS: dict[str, Callable[[ProblemReport, Any, SpecContext], None]] = {
 }
 REQUIRED_TABLES = {"tube": "one or more [[tube]] tables (or a [kite])", "support": "one or "
                    "more [[support]] tables (or a [kite])", "path": "a [path] table"}
-# Reserved for the full kite of a later format version; named here so that a spec using
-# them gets a clear message instead of "unknown key".
-RESERVED_TABLES = {
-    "canopy": "the kite canopy (a membrane between the tubes)",
-    "line": "bridle lines, which carry tension only",
-    "point_mass": "point masses",
-}
+# Tables reserved for a later format version get a clear message instead of "unknown key"
+# (none today: the whole-kite element tables arrived, jaxtube._spec.elements).
+RESERVED_TABLES: dict[str, str] = {}
 
 
 def load_spec(path: str | os.PathLike, *, steps: int | None = None) -> LoadedSpec:
@@ -153,16 +150,25 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
     p = ProblemReport(source)
     required = {k: v for k, v in REQUIRED_TABLES.items()
                 if "kite" not in document or k not in ("tube", "support")}
+    if "point" in document:  # a fixed point may hold the frame instead (checked below)
+        required.pop("support", None)
     for key, what in RESERVED_TABLES.items():
         if key in document:
             p.add(key, f"reserved for {what} in a later spec format version; this jaxtube "
                   f"(format version {FORMAT_VERSION}) cannot simulate it yet")
     check_keys(p, {k: v for k, v in document.items() if k not in RESERVED_TABLES}, "",
-               tuple(TABLE_READERS), required)
+               tuple(TABLE_READERS) + ELEMENT_TABLES, required)
     ctx = SpecContext()
     for key, read in TABLE_READERS.items():
         if key in document:
             read(p, document[key], ctx)
+    elements = read_element_tables(p, document, ctx)
+    if "point" in document and "support" not in document and "kite" not in document \
+            and not elements.fixed and not any(  # a bad 'fixed' value is reported already
+                isinstance(t, dict) and t.get("fixed", False) is not False
+                for t in (document["point"] if isinstance(document["point"], list) else [])):
+        p.add("support", "missing required key (expected one or more [[support]] tables, "
+              "or a [[point]] with fixed = true holding the structure by lines)")
     if "support" in document and not ctx.supports and isinstance(document["support"], list):
         p.add("support", "expected at least one [[support]]")
     if steps is not None and not (isinstance(steps, int) and steps > 0):
@@ -189,14 +195,15 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
         torque[name(ref)] = torque.get(name(ref), 0.0) + t
     gravity = ctx.gravity
     if gravity is None:
-        has_mass = any(float(t.mass_per_length) > 0 for t in ctx.tubes)
+        has_mass = any(float(t.mass_per_length) > 0 for t in ctx.tubes) or elements.has_mass
         gravity = np.array([0.0, 0.0, -STANDARD_GRAVITY if has_mass else 0.0])
     try:
         structure, params = build_structure(
             ctx.tubes,
             [Support(name(ref), kind) for _, ref, kind in ctx.supports],
             [Connection(name(a), name(b), kind) for _, a, b, kind in ctx.connections],
-            node_force=force or None, node_torque=torque or None, gravity=gravity)
+            node_force=force or None, node_torque=torque or None, gravity=gravity,
+            **elements.build_arguments())
     except ValueError as error:
         raise SpecError([Problem(source, f"cannot assemble the structure: {error}")]) \
             from None
