@@ -52,6 +52,7 @@ from ._model import ForceControl as ForceControl
 from ._model import Solution as Solution
 from ._model import check_converged as check_converged
 from ._model import equilibrium as equilibrium
+from ._compilation_cache import enable_compilation_cache as enable_compilation_cache
 from ._model import scale_loads as scale_loads
 from ._model import solve_path as solve_path
 from ._model import total_energy as total_energy

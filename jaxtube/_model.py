@@ -143,15 +143,41 @@ def _constraints(structure, config, state, params, control) -> Array:
 
 def _objective(structure, geometry, state, params, control):
     """Energy [J] and constraints [m] from one evaluation of the kinematics."""
+    terms, c = _objective_terms(structure, geometry, state, params, control)
+    return jnp.sum(terms), c
+
+
+def _objective_terms(structure, geometry, state, params, control):
+    """Energy terms ``[3]`` (joint strain energy, shear energy, load potential) [J] and
+    constraints [m]: the solver's stopping rule takes its force scale from each term's
+    gradient (internal spring forces, applied loads) and from the reactions."""
     config = configuration(structure, geometry, state)
-    energy = _energy_of(structure, params, geometry, config, state)
-    return energy, _constraints(structure, config, state, params, control)
+    joints = spring_joints(structure, geometry, state)
+    terms = jnp.stack([strain_energy(joints, params),
+                       shear_energy(structure, geometry, params, state),
+                       load_potential(structure, geometry, config, params, state)])
+    return terms, _constraints(structure, config, state, params, control)
 
 
 def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params, control,
                        state: dict, multipliers: Array) -> Array:
-    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state, ``[n, n]``, assembled
-    from element Hessians (the exact Hessian, not an approximation).
+    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state, ``[n, n]``: the blocks
+    of :func:`lagrangian_hessian_blocks` scatter-added into a dense matrix."""
+    blocks = lagrangian_hessian_blocks(structure, geometry, params, control, state,
+                                       multipliers)
+    n = sum(leaf.size for leaf in jax.tree_util.tree_leaves(state))
+    rows = np.concatenate([r.reshape(-1) for r, _, _ in blocks])
+    cols = np.concatenate([c.reshape(-1) for _, c, _ in blocks])
+    values = jnp.concatenate([v.reshape(-1) for _, _, v in blocks])
+    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+
+
+def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry, params,
+                              control, state: dict, multipliers: Array) -> list:
+    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state as a list of blocks
+    ``(rows, cols, values)`` (static index arrays, element Hessians; the interface of
+    ``jaxtube._kkt_linear``), from element Hessians (the exact Hessian, not an
+    approximation).
 
     Node positions are ``root + sum_s Q_s0 exp(phi_s) e_s`` and every load potential and
     constraint is linear in the root position and the segment vectors ``step_s``, so with
@@ -229,11 +255,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
         cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
         values.append(blocks)
 
-    n = int(offsets[-1])
-    rows = np.concatenate([r.reshape(-1) for r in rows])
-    cols = np.concatenate([c.reshape(-1) for c in cols])
-    values = jnp.concatenate([v.reshape(-1) for v in values])
-    return jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+    return list(zip(rows, cols, values))
 
 
 def _post_process(structure, params, geometry, eq, control, factor) -> Solution:
@@ -310,12 +332,14 @@ def equilibrium(
 def _solve(structure, params, geometry, ctrl, state0, lam0, solver, factor) -> Solution:
     def objective(state, args):
         p, g, c = args
-        return _objective(structure, g, state, p, None if c is None else (ctrl[0], c[0], c[1]))
+        return _objective_terms(structure, g, state, p,
+                                None if c is None else (ctrl[0], c[0], c[1]))
 
     def hessian(state, multipliers, args):
         p, g, c = args
-        return lagrangian_hessian(structure, g, p, None if c is None else (ctrl[0], c[0], c[1]),
-                                  state, multipliers)
+        return lagrangian_hessian_blocks(structure, g, p,
+                                         None if c is None else (ctrl[0], c[0], c[1]),
+                                         state, multipliers)
 
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
