@@ -129,10 +129,6 @@ class DenseKKT:
         bottom = jnp.concatenate([jacobian, -delta * jnp.eye(m, dtype=dtype)], axis=1)
         return jnp.concatenate([top, bottom], axis=0)
 
-    def placeholder(self, dtype):
-        size = self.n + self.m
-        return jnp.full((size, size), jnp.nan, dtype)
-
     @staticmethod
     def solve(kkt, rhs):
         return jnp.linalg.solve(kkt, rhs)
@@ -203,9 +199,6 @@ class SparseKKT:
             half, half, jnp.full((self.n,), mu, dtype), jac, jac,
             jnp.full((self.m,), -delta, dtype)])
         return jax.ops.segment_sum(contributions, self.slot, self.nnz)
-
-    def placeholder(self, dtype):
-        return jnp.full((self.nnz,), jnp.nan, dtype)
 
     def solve(self, kkt, rhs):
         return self.klujax.solve_with_symbol(self.Ai, self.Aj, kkt, rhs, self.symbol)

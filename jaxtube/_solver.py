@@ -138,21 +138,22 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         e, c = lagrangian_and_parts(z, jnp.zeros_like(lam0))[1]
         return e + rho * jnp.sum(jnp.abs(c))
 
+    def lagrangian_hessian(z, lam):
+        """The Hessian in the route's form (dense matrix or flat block values)."""
+        if hessian_fn is None:
+            return route.hessian(jax.hessian(lambda zz: lagrangian_and_parts(zz, lam)[0])(z))
+        return route.hessian(hessian_fn(z, lam, args))
+
     def body(carry):
-        z, lam, rho, step, _, _, _, _, _ = carry
+        z, lam, rho, step, _, _, _, _ = carry
         # One reverse linearisation of (energy terms, constraints), pulled back along unit
         # cotangents: the gradient of each energy term and the constraint Jacobian.
         (parts, c), pullback = jax.vjp(lambda zz: objective(zz, args), z)
         (rows,) = jax.vmap(pullback)((unit_parts, unit_constraints))
         part_grads, jacobian = rows[:k], rows[k:]
         grad_e = jnp.sum(part_grads, axis=0)
-        jacobian_t = jacobian.T
         e = jnp.sum(parts)
-        if hessian_fn is None:
-            hessian = route.hessian(jax.hessian(lambda zz: lagrangian_and_parts(zz, lam)[0])(z))
-        else:
-            hessian = route.hessian(hessian_fn(z, lam, args))
-        jt_lam = jacobian_t @ lam
+        jt_lam = jacobian.T @ lam
         grad_l = grad_e + jt_lam
         res_g = jnp.max(jnp.abs(grad_l))
         res_c = jnp.max(jnp.abs(c), initial=0.0)
@@ -162,86 +163,100 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # reactions still has the internal and load terms it balances.
         scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
         converged = (res_g <= solver.rtol * scale + solver.atol) & (res_c <= solver.constraint_tol)
-        finite = jnp.isfinite(res_g) & jnp.isfinite(res_c) & jnp.all(jnp.isfinite(hessian))
+        finite_residual = jnp.isfinite(res_g) & jnp.isfinite(res_c)
 
-        # Curvature test with growing regularisation (inertia-free).
-        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
-        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
+        def newton_step(_):
+            """Hessian, regularised KKT solve and line search (skipped once converged:
+            the convergence test needs only the gradient)."""
+            hessian = lagrangian_hessian(z, lam)
+            finite = jnp.all(jnp.isfinite(hessian))
+            # Curvature test with growing regularisation (inertia-free).
+            h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+            j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
 
-        def solve_with(mu):
-            # Redundant constraints (e.g. an inextensible straight tube between two pins)
-            # make J rank deficient: regularised tries add a proximal term on the
-            # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
-            delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
-            rhs = jnp.concatenate([-grad_e, -c - delta * lam])
-            sol = route.solve(route.kkt(hessian, jacobian, mu, delta), rhs)
-            dz = sol[:n]
-            curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
-            ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
-            return sol, ok
+            def solve_with(mu):
+                # Redundant constraints (e.g. an inextensible straight tube between two
+                # pins) make J rank deficient: regularised tries add a proximal term on the
+                # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
+                delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
+                rhs = jnp.concatenate([-grad_e, -c - delta * lam])
+                sol = route.solve(route.kkt(hessian, jacobian, mu, delta), rhs)
+                dz = sol[:n]
+                curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
+                ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
+                return sol, ok
 
-        def reg_cond(rc):
-            _, ok, tries, _ = rc
-            return (~ok) & (tries < solver.max_regularisations)
+            def reg_cond(rc):
+                _, ok, tries, _ = rc
+                return (~ok) & (tries < solver.max_regularisations)
 
-        def reg_body(rc):
-            _, _, tries, mu = rc
-            mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
-            sol, ok = solve_with(mu)
-            return sol, ok, tries + 1, mu
+            def reg_body(rc):
+                _, _, tries, mu = rc
+                mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
+                sol, ok = solve_with(mu)
+                return sol, ok, tries + 1, mu
 
-        sol0, ok0 = solve_with(jnp.zeros((), dtype=z.dtype))
-        sol, _, _, _ = jax.lax.while_loop(
-            reg_cond, reg_body, (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype))
-        )
-        dz, lam_new = sol[:n], sol[n:]
+            sol0, ok0 = solve_with(jnp.zeros((), dtype=z.dtype))
+            sol, _, _, _ = jax.lax.while_loop(
+                reg_cond, reg_body,
+                (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
+            dz, lam_new = sol[:n], sol[n:]
 
-        rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
-        phi0 = e + rho_new * jnp.sum(jnp.abs(c))
-        slope = grad_e @ dz - rho_new * jnp.sum(jnp.abs(c))
-        full_grad, full_e, full_c = gradient_and_parts(z + dz, lam_new)
-        full_g = jnp.max(jnp.abs(full_grad))
-        full_cn = jnp.max(jnp.abs(full_c), initial=0.0)
-        full_ok = (full_g <= 0.5 * res_g) & (full_cn <= jnp.maximum(0.5 * res_c,
-                                                                  solver.constraint_tol))
-        armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
+            rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
+            phi0 = e + rho_new * jnp.sum(jnp.abs(c))
+            slope = grad_e @ dz - rho_new * jnp.sum(jnp.abs(c))
+            full_grad, full_e, full_c = gradient_and_parts(z + dz, lam_new)
+            full_g = jnp.max(jnp.abs(full_grad))
+            full_cn = jnp.max(jnp.abs(full_c), initial=0.0)
+            full_ok = (full_g <= 0.5 * res_g) & (full_cn <= jnp.maximum(0.5 * res_c,
+                                                                      solver.constraint_tol))
+            armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
 
-        def ls_cond(lc):
-            alpha, accepted, k = lc
-            return (~accepted) & (k < solver.max_backtracks)
+            def ls_cond(lc):
+                alpha, accepted, tries = lc
+                return (~accepted) & (tries < solver.max_backtracks)
 
-        def ls_body(lc):
-            alpha, _, k = lc
-            alpha = 0.5 * alpha
-            accepted = merit(z + alpha * dz, rho_new) <= phi0 + 1e-4 * alpha * slope
-            return alpha, accepted, k + 1
+            def ls_body(lc):
+                alpha, _, tries = lc
+                alpha = 0.5 * alpha
+                accepted = merit(z + alpha * dz, rho_new) <= phi0 + 1e-4 * alpha * slope
+                return alpha, accepted, tries + 1
 
-        alpha, accepted, _ = jax.lax.while_loop(
-            ls_cond, ls_body, (jnp.ones((), z.dtype), full_ok | armijo_full,
-                               jnp.zeros((), jnp.int32))
-        )
-        finite = finite & jnp.all(jnp.isfinite(dz))
+            alpha, accepted, _ = jax.lax.while_loop(
+                ls_cond, ls_body, (jnp.ones((), z.dtype), full_ok | armijo_full,
+                                   jnp.zeros((), jnp.int32)))
+            finite = finite & jnp.all(jnp.isfinite(dz))
+            return z + alpha * dz, lam + alpha * (lam_new - lam), rho_new, accepted, finite
+
+        def stay(_):
+            return z, lam, rho, jnp.ones((), bool), jnp.ones((), bool)
+
+        z_try, lam_try, rho_new, accepted, finite_step = jax.lax.cond(
+            converged | ~finite_residual, stay, newton_step, None)
+        finite = finite_residual & finite_step
         stop = converged | ~finite | ~accepted
         code = jnp.where(converged, 0, jnp.where(~finite, 3, jnp.where(~accepted, 2, 1)))
         code = code.astype(jnp.int32)
-        z_next = jnp.where(stop, z, z + alpha * dz)
-        lam_next = jnp.where(stop, lam, lam + alpha * (lam_new - lam))
-        # The KKT matrix at the current point: when the loop stops here it is the matrix at
-        # the returned solution, reused by the implicit-function-theorem tangent.
-        zero = jnp.zeros((), z.dtype)
-        kkt = route.kkt(hessian, jacobian, zero, zero)
+        z_next = jnp.where(stop, z, z_try)
+        lam_next = jnp.where(stop, lam, lam_try)
         return (z_next, lam_next, rho_new, step + jnp.where(stop, 0, 1).astype(jnp.int32), stop,
-                code, res_g, res_c, kkt)
+                code, res_g, res_c)
 
     def cond(carry):
-        _, _, _, step, stop, _, _, _, _ = carry
+        _, _, _, step, stop, _, _, _ = carry
         return (~stop) & (step < solver.max_steps)
 
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
-            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype),
-            route.placeholder(dtype))
-    z, lam, _, steps, _, code, res_g, res_c, kkt = jax.lax.while_loop(cond, body, init)
-    return z, lam, (code == 0, steps, code, res_g, res_c), (kkt, route)
+            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype))
+    z, lam, _, steps, _, code, res_g, res_c = jax.lax.while_loop(cond, body, init)
+
+    def kkt_at_solution():
+        """KKT matrix (route's form) at the returned point, for the implicit tangent."""
+        jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
+        zero = jnp.zeros((), dtype)
+        return route.kkt(lagrangian_hessian(z, lam), jacobian, zero, zero)
+
+    return z, lam, (code == 0, steps, code, res_g, res_c), (kkt_at_solution, route)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
@@ -263,14 +278,15 @@ def _kkt_residual(objective, z, lam, args):
 def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     args, z0, lam0 = primals
     args_dot = tangents[0]
-    z, lam, stats, (kkt, route) = _newton(objective, hessian_fn, solver, args, z0, lam0)
+    z, lam, stats, (kkt_at_solution, route) = _newton(objective, hessian_fn, solver, args, z0,
+                                                      lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
     # The KKT matrix at the solution, solved on the route of the Newton iterations (the
     # sparse route reuses its symbolic analysis).
-    solution_dot = -route.solve(kkt, residual_dot)
+    solution_dot = -route.solve(kkt_at_solution(), residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
