@@ -77,17 +77,27 @@ def ladder():
 
 
 def kkt_parts(structure, params):
-    """Hessian blocks and constraint Jacobian at the unloaded state (the solver's pieces)."""
+    """Hessian blocks and constraint Jacobian at the unloaded state (the solver's pieces),
+    computed in one compiled program (the block positions are static numpy arrays, kept
+    from the trace)."""
     from jaxtube._model import _objective_terms, lagrangian_hessian_blocks
 
-    geometry = reference_geometry(structure, params)
-    state = jt.initial_state(structure, params)
-    z, unravel = ravel_pytree(state)
-    jacobian = jax.jacrev(lambda zz: _objective_terms(structure, geometry, unravel(zz),
-                                                      params, None)[1])(z)
-    lam = jnp.ones((jacobian.shape[0],))
-    blocks = lagrangian_hessian_blocks(structure, geometry, params, None, state, lam)
-    return blocks, jacobian
+    positions = []
+
+    @jax.jit
+    def parts(params):
+        geometry = reference_geometry(structure, params)
+        state = jt.initial_state(structure, params)
+        z, unravel = ravel_pytree(state)
+        jacobian = jax.jacrev(lambda zz: _objective_terms(structure, geometry, unravel(zz),
+                                                          params, None)[1])(z)
+        lam = jnp.ones((jacobian.shape[0],))
+        blocks = lagrangian_hessian_blocks(structure, geometry, params, None, state, lam)
+        positions[:] = [(r, c) for r, c, _ in blocks]
+        return [v for _, _, v in blocks], jacobian
+
+    values, jacobian = parts(params)
+    return [(r, c, v) for (r, c), v in zip(positions, values)], jacobian
 
 
 def kkt_solvers(blocks, n, m):
