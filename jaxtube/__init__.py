@@ -32,6 +32,7 @@ import jax as _jax
 if _os.environ.get("JAXTUBE_NO_X64", "0") in ("", "0"):
     _jax.config.update("jax_enable_x64", True)
 
+from ._compilation_cache import enable_compilation_cache as enable_compilation_cache
 from ._kite import Strut as Strut
 from ._kite import TubeKite as TubeKite
 from ._kite import arc_through_tips as arc_through_tips
@@ -52,7 +53,6 @@ from ._model import ForceControl as ForceControl
 from ._model import Solution as Solution
 from ._model import check_converged as check_converged
 from ._model import equilibrium as equilibrium
-from ._compilation_cache import enable_compilation_cache as enable_compilation_cache
 from ._model import scale_loads as scale_loads
 from ._model import solve_path as solve_path
 from ._model import total_energy as total_energy
