@@ -21,6 +21,7 @@ API summary is the docstring of ``jaxtube._elements``.
 """
 
 from . import _config  # noqa: F401, I001  (first: XLA_FLAGS and float64 before JAX runs)
+from ._compilation_cache import enable_compilation_cache as enable_compilation_cache
 from ._controls import DisplacementControl as DisplacementControl
 from ._controls import ForceControl as ForceControl
 from ._controls import scale_loads as scale_loads

@@ -17,13 +17,13 @@ from jax import Array
 from ._controls import DisplacementControl
 from ._elements import element_results
 from ._mechanics.energy import (
-    energy_and_constraints,
+    energy_terms_and_constraints,
     joint_moments,
     node_displacement,
     world_joint_moments,
 )
 from ._mechanics.geometry import ReferenceGeometry, reference_geometry
-from ._mechanics.hessian import lagrangian_hessian
+from ._mechanics.hessian import lagrangian_hessian_blocks
 from ._mechanics.kinematics import configuration, initial_state, spring_joints
 from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
 from ._structure.structure import GROUND, JOINT_GROUND, Structure, StructureParameters
@@ -202,12 +202,13 @@ def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, fa
     def objective(state, args):
         p, g, c = args
         control = None if c is None else (ctrl[0], c[0], c[1])
-        return energy_and_constraints(structure, g, state, p, control)
+        return energy_terms_and_constraints(structure, g, state, p, control)
 
     def hessian(state, multipliers, args):
         p, g, c = args
-        return lagrangian_hessian(structure, g, p, None if c is None else (ctrl[0], c[0], c[1]),
-                                  state, multipliers)
+        return lagrangian_hessian_blocks(structure, g, p,
+                                         None if c is None else (ctrl[0], c[0], c[1]),
+                                         state, multipliers)
 
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,

@@ -60,14 +60,14 @@ tip's horizontal displacement ``u``.
   is the one of the last solve (``wrinkling_iterations``, ``collapse_iterations`` solves),
   and ``moment_mismatch`` is ``|M_root / M_target - 1|`` there; above
   ``moment_tolerance`` the point is reported as not converged. 30-60 times slower than
-  the planar route (``experiments/bench_sweep.py``), which also found a known defect of
-  this iteration, not investigated: at some specimens it returns its starting load
-  ``M_w / L`` as the wrinkling load with a reported mismatch of about 1e-15, while an
-  independent solve at that load has a root moment up to 7e-4 short of ``M_w``. The cause
-  is in the solver's stopping rule, not in batching: the first wrinkling solve's linear
-  step puts the root joint exactly on the tension-field law's onset, where the rule's
-  ``|H z|`` scale explodes (by elimination), so the solve stops after one step
-  (``tests/test_known_defects.py``, a strict xfail).
+  the planar route (``experiments/bench_sweep.py``), which also found a defect of the
+  solver, since fixed: at some specimens this iteration returned its starting load
+  ``M_w / L`` as the wrinkling load, because the first wrinkling solve's linear step put
+  the root joint exactly on the tension-field law's onset, where the law's computed second
+  derivative and with it the old stopping rule's ``|H z|`` scale exploded, so the solve
+  stopped after one step. The law's Hessian is now exact there and the stopping rule's
+  scale is the largest generalised force of a term (``tests/test_solver.py``,
+  ``tests/test_convergence_honesty.py``).
 
 **Failures are per point and never hidden.** Each quantity has a status code
 (:data:`STATUS_MESSAGES`); a quantity that is not available is NaN in the arrays and blank

@@ -39,7 +39,13 @@ from .assembly import (
 from .assembly import (
     element_hessian_blocks as element_hessian_blocks,
 )
+from .assembly import (
+    element_load_potential as element_load_potential,
+)
 from .assembly import element_results as element_results
+from .assembly import (
+    element_strain_energy as element_strain_energy,
+)
 from .assembly import (
     initial_point_position as initial_point_position,
 )

@@ -41,6 +41,13 @@ def initial_point_position(topology: ElementTopology, elements: ElementParameter
 def element_energy(topology: ElementTopology, elements: ElementParameters, gravity: Array,
                    point_position: Array) -> Array:
     """Line and pulley strain energy minus the potential of masses and point forces [J]."""
+    return (element_strain_energy(topology, elements, point_position)
+            + element_load_potential(topology, elements, gravity, point_position))
+
+
+def element_strain_energy(topology: ElementTopology, elements: ElementParameters,
+                          point_position: Array) -> Array:
+    """Strain energy of the tension-only lines and pulley ropes [J]."""
     energy = jnp.zeros((), point_position.dtype)
     smoothing = elements.tension_smoothing
     if topology.line_ends:
@@ -53,6 +60,13 @@ def element_energy(topology: ElementTopology, elements: ElementParameters, gravi
         energy = energy + jnp.sum(pulley_energy(
             point_position[ends[:, 0]], point_position[ends[:, 1]], point_position[ends[:, 2]],
             elements.pulley_stiffness, elements.pulley_rest_length, smoothing))
+    return energy
+
+
+def element_load_potential(topology: ElementTopology, elements: ElementParameters,
+                           gravity: Array, point_position: Array) -> Array:
+    """Potential of the point masses under gravity and of the point nodes' dead forces [J]."""
+    energy = jnp.zeros((), point_position.dtype)
     if topology.mass_points:
         weight = elements.point_mass[:, None] * gravity[None, :]
         energy = energy - jnp.sum(weight * _rows(point_position, topology.mass_points))

@@ -33,12 +33,14 @@ segment midpoints, which is exact for a rigid segment).
 """
 
 from .energy import energy_and_constraints as energy_and_constraints
+from .energy import energy_terms_and_constraints as energy_terms_and_constraints
 from .energy import joint_moments as joint_moments
 from .energy import segment_loads as segment_loads
 from .energy import total_energy as total_energy
 from .geometry import ReferenceGeometry as ReferenceGeometry
 from .geometry import reference_geometry as reference_geometry
 from .hessian import lagrangian_hessian as lagrangian_hessian
+from .hessian import lagrangian_hessian_blocks as lagrangian_hessian_blocks
 from .kinematics import Configuration as Configuration
 from .kinematics import configuration as configuration
 from .kinematics import initial_state as initial_state

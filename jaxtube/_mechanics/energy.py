@@ -13,7 +13,12 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .._elements import element_constraints, element_energy
+from .._elements import (
+    element_constraints,
+    element_energy,
+    element_load_potential,
+    element_strain_energy,
+)
 from .._rotation import inverse_right_jacobian_transpose, matmul3, matvec3, transpose3
 from .._structure.structure import Structure, StructureParameters
 from .geometry import ReferenceGeometry, take_rows
@@ -193,6 +198,29 @@ def constraints(structure, config, state, params, control) -> Array:
 
 def energy_and_constraints(structure, geometry, state, params, control):
     """Energy [J] and constraints [m] from one evaluation of the kinematics."""
+    terms, c = energy_terms_and_constraints(structure, geometry, state, params, control)
+    return jnp.sum(terms), c
+
+
+def energy_terms_and_constraints(structure, geometry, state, params, control):
+    """Energy terms ``[5]`` [J] (joint strain energy, shear energy, the tubes' load
+    potential, line and pulley strain energy, the point nodes' load potential) and the
+    constraints [m], from one evaluation of the kinematics. The solver's stopping rule takes
+    its force scale from each term's gradient (internal spring forces, applied loads) and
+    from the reactions, never from the tangent stiffness."""
     config = tube_configuration(structure, geometry, state)
-    energy = potential_energy(structure, params, geometry, config, state)
-    return energy, constraints(structure, config, state, params, control)
+    zero = jnp.zeros(())
+    strain = shear = load = line = point_load = zero
+    if config is not None:
+        joints = spring_joints(structure, geometry, state)
+        strain = strain_energy(joints, params)
+        shear = shear_energy(structure, geometry, params, state)
+        load = load_potential(structure, geometry, config, params, state)
+    if structure.elements.active:
+        points = state["point_position"]
+        line = element_strain_energy(structure.elements, params.elements, points)
+        point_load = element_load_potential(structure.elements, params.elements,
+                                            params.gravity, points)
+    terms = jnp.stack([jnp.asarray(t, dtype=float) for t in
+                       (strain, shear, load, line, point_load)])
+    return terms, constraints(structure, config, state, params, control)

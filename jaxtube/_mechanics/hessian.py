@@ -27,8 +27,17 @@ from .kinematics import (
 
 def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params, control,
                        state: dict, multipliers: Array) -> Array:
-    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state, ``[n, n]``, assembled
-    from element Hessians (the exact Hessian, not an approximation).
+    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state, ``[n, n]``: the blocks
+    of :func:`lagrangian_hessian_blocks` scatter-added into a dense matrix."""
+    return dense_from_blocks(state, lagrangian_hessian_blocks(structure, geometry, params,
+                                                              control, state, multipliers))
+
+
+def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry, params,
+                              control, state: dict, multipliers: Array) -> list:
+    """Hessian of ``L = E + lambda . c`` w.r.t. the flattened state as a list of blocks
+    ``(rows, cols, values)`` (static index arrays and element Hessians: the interface of
+    ``jaxtube._solver.kkt_linear``), the exact Hessian, not an approximation.
 
     Node positions are ``root + sum_s Q_s0 exp(phi_s) e_s`` and every load potential and
     constraint is linear in the root position and the segment vectors ``step_s``, so with
@@ -44,7 +53,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
     segment vectors and enter through ``g_s``.
     """
     if not structure.segment_count:
-        return dense_from_blocks(state, _element_blocks(structure, params, state))
+        return _element_blocks(structure, params, state)
     phi = state["segment_rotation"]
     frame, step = segment_steps(geometry, state)
 
@@ -110,8 +119,7 @@ def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params
         cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
         values.append(blocks)
 
-    blocks = list(zip(rows, cols, values)) + _element_blocks(structure, params, state)
-    return dense_from_blocks(state, blocks)
+    return list(zip(rows, cols, values)) + _element_blocks(structure, params, state)
 
 
 def _element_blocks(structure, params, state) -> list:

@@ -2,12 +2,25 @@
 
 Problem: ``min_y E(y, args)`` subject to ``c(y, args) = 0``, where ``y`` is any PyTree (the
 structure's state) and ``args`` any PyTree of parameters; one objective function returns
-``(E, c)`` so that their shared work (the kinematics) is done once. Stationarity of the Lagrangian
+``(E, c)`` so that their shared work (the kinematics) is done once. ``E`` may be a vector of
+energy terms ``[k]`` (``E = sum_k E_k``: e.g. strain energy, load potential), which sets the
+scale of the stopping rule. Stationarity of the Lagrangian
 ``L = E + lambda . c`` gives the KKT system, solved by Newton's method with the exact
 Hessian (forward-over-reverse automatic differentiation):
 
     [H + mu I   J^T] [dy        ]     [-grad E]
     [J          0  ] [lambda_new]  =  [-c     ]
+
+Stopping rule: converged when ``|grad E + J^T lambda|_inf <= rtol * scale + atol`` and
+``|c|_inf <= constraint_tol``, with ``scale = max(max_k |grad E_k|_inf, |J^T lambda|_inf)``:
+the largest generalised force of any term making up the residual. It does not involve the
+tangent stiffness (an earlier rule used ``|H z|``, which exploded where a law's computed
+second derivative did and accepted a far-from-converged state), and a self-equilibrated
+problem with zero reactions (a ring pushed at two opposite points) still has its internal
+and load terms.
+
+The linear systems are solved dense (LAPACK) or sparse (KLU on a static pattern built from
+the model's Hessian blocks), chosen by ``NewtonKKT.linear_solver``: ``jaxtube._solver.kkt_linear``.
 
 Globalisation:
 
@@ -40,6 +53,7 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
+from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -49,12 +63,16 @@ class NewtonKKT(eqx.Module):
     """Settings of the Newton solver. Tolerances are floats; counts are static.
 
     Attributes:
-        rtol: KKT gradient residual relative to the size of the balancing force terms.
+        rtol: KKT gradient residual relative to the largest generalised force of any one
+            energy term or of the reactions (``max_k |grad E_k|``, ``|J^T lambda|``).
         atol: absolute gradient residual [N m or N] (needed at zero load).
         constraint_tol: absolute constraint residual [m].
         max_steps: Newton steps per solve.
         max_backtracks: halvings of the step in the line search.
         max_regularisations: tenfold increases of ``mu`` in the curvature test.
+        linear_solver: ``"auto"`` (sparse KLU on the CPU for a model giving Hessian blocks
+            and a KKT system of at least ``SPARSE_CROSSOVER`` unknowns, else dense),
+            ``"dense"`` or ``"sparse"`` (``jaxtube._solver.kkt_linear``).
     """
 
     rtol: float = 1e-10
@@ -63,6 +81,7 @@ class NewtonKKT(eqx.Module):
     max_steps: int = eqx.field(static=True, default=60)
     max_backtracks: int = eqx.field(static=True, default=30)
     max_regularisations: int = eqx.field(static=True, default=12)
+    linear_solver: str = eqx.field(static=True, default="auto")
 
 
 class EquilibriumResult(eqx.Module):
@@ -84,19 +103,31 @@ class EquilibriumResult(eqx.Module):
     constraint_violation: Array
 
 
-def _kkt_matrix(hessian, jacobian, mu, delta=0.0):
-    n, m = hessian.shape[0], jacobian.shape[0]
-    top = jnp.concatenate([hessian + mu * jnp.eye(n, dtype=hessian.dtype), jacobian.T], axis=1)
-    bottom = jnp.concatenate([jacobian, -delta * jnp.eye(m, dtype=hessian.dtype)], axis=1)
-    return jnp.concatenate([top, bottom], axis=0)
+def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
+    """The linear-algebra route (``jaxtube._solver.kkt_linear``) for this problem, chosen at trace
+    time. A model's hessian is traced once here for its static block positions (its
+    values are unused, so the compiled program drops them)."""
+    n, m = z0.shape[0], lam0.shape[0]
+    blocks = None if hessian_fn is None else hessian_fn(z0, lam0, args)
+    given = blocks is not None and is_blocks(blocks)
+    if choose_route(solver.linear_solver, given, n + m) == "sparse":
+        return SparseKKT(blocks, n, m)
+    return DenseKKT(n, m)
 
 
 def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     n = z0.shape[0]
-    eye = jnp.eye(n, dtype=z0.dtype)
+    m = lam0.shape[0]
+    k = jax.eval_shape(objective, z0, args)[0].shape[0]
+    dtype = z0.dtype
+    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    # Cotangents selecting each energy term (first k rows) and each constraint (last m).
+    unit_parts = jnp.concatenate([jnp.eye(k, dtype=dtype), jnp.zeros((m, k), dtype)])
+    unit_constraints = jnp.concatenate([jnp.zeros((k, m), dtype), jnp.eye(m, dtype=dtype)])
 
     def lagrangian_and_parts(z, lam):
-        e, c = objective(z, args)
+        terms, c = objective(z, args)
+        e = jnp.sum(terms)
         return e + jnp.dot(lam, c), (e, c)
 
     def gradient_and_parts(z, lam):
@@ -107,111 +138,125 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         e, c = lagrangian_and_parts(z, jnp.zeros_like(lam0))[1]
         return e + rho * jnp.sum(jnp.abs(c))
 
-    def body(carry):
-        z, lam, rho, step, _, _, _, _, _ = carry
+    def lagrangian_hessian(z, lam):
+        """The Hessian in the route's form (dense matrix or flat block values)."""
         if hessian_fn is None:
-            # One linearisation gives the gradient, the energy, the constraints and, by
-            # pushing the identity through it, the Lagrangian Hessian and the constraint
-            # Jacobian.
-            (grad_l, e, c), tangent = jax.linearize(lambda zz: gradient_and_parts(zz, lam), z)
-            hessian, _, jacobian_t = jax.vmap(tangent)(eye)
-            jacobian = jacobian_t.T
-        else:
-            grad_l, e, c = gradient_and_parts(z, lam)
-            jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
-            jacobian_t = jacobian.T
-            hessian = hessian_fn(z, lam, args)
-        hessian = 0.5 * (hessian + hessian.T)
-        jt_lam = jacobian_t @ lam
-        grad_e = grad_l - jt_lam
+            return route.hessian(jax.hessian(lambda zz: lagrangian_and_parts(zz, lam)[0])(z))
+        return route.hessian(hessian_fn(z, lam, args))
+
+    def body(carry):
+        z, lam, rho, step, _, _, _, _ = carry
+        # One reverse linearisation of (energy terms, constraints), pulled back along unit
+        # cotangents: the gradient of each energy term and the constraint Jacobian.
+        (parts, c), pullback = jax.vjp(lambda zz: objective(zz, args), z)
+        (rows,) = jax.vmap(pullback)((unit_parts, unit_constraints))
+        part_grads, jacobian = rows[:k], rows[k:]
+        grad_e = jnp.sum(part_grads, axis=0)
+        e = jnp.sum(parts)
+        jt_lam = jacobian.T @ lam
+        grad_l = grad_e + jt_lam
         res_g = jnp.max(jnp.abs(grad_l))
         res_c = jnp.max(jnp.abs(c), initial=0.0)
-        scale = jnp.maximum(
-            jnp.max(jnp.abs(grad_e)), jnp.maximum(jnp.max(jnp.abs(jt_lam)),
-                                                  jnp.max(jnp.abs(hessian @ z)))
-        )
+        # The scale of the stopping rule: the largest generalised force of any one energy
+        # term (internal springs, applied loads, ...) or of the reactions J^T lambda. It
+        # does not involve the tangent stiffness, and a self-equilibrated problem with zero
+        # reactions still has the internal and load terms it balances.
+        scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
         converged = (res_g <= solver.rtol * scale + solver.atol) & (res_c <= solver.constraint_tol)
-        finite = jnp.isfinite(res_g) & jnp.isfinite(res_c) & jnp.all(jnp.isfinite(hessian))
+        finite_residual = jnp.isfinite(res_g) & jnp.isfinite(res_c)
 
-        # Curvature test with growing regularisation (inertia-free).
-        h_scale = jnp.maximum(jnp.max(jnp.abs(jnp.diag(hessian))), 1e-300)
-        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
+        def newton_step(_):
+            """Hessian, regularised KKT solve and line search (skipped once converged:
+            the convergence test needs only the gradient)."""
+            hessian = lagrangian_hessian(z, lam)
+            finite = jnp.all(jnp.isfinite(hessian))
+            # Curvature test with growing regularisation (inertia-free).
+            h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+            j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
 
-        def solve_with(mu):
-            # Redundant constraints (e.g. an inextensible straight tube between two pins)
-            # make J rank deficient: regularised tries add a proximal term on the
-            # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
-            delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
-            rhs = jnp.concatenate([-grad_e, -c - delta * lam])
-            sol = jnp.linalg.solve(_kkt_matrix(hessian, jacobian, mu, delta), rhs)
-            dz = sol[:n]
-            curvature = dz @ (hessian @ dz) + mu * (dz @ dz)
-            ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
-            return sol, ok
+            def solve_with(mu):
+                # Redundant constraints (e.g. an inextensible straight tube between two
+                # pins) make J rank deficient: regularised tries add a proximal term on the
+                # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
+                delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
+                rhs = jnp.concatenate([-grad_e, -c - delta * lam])
+                sol = route.solve(route.kkt(hessian, jacobian, mu, delta), rhs)
+                dz = sol[:n]
+                curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
+                ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
+                return sol, ok
 
-        def reg_cond(rc):
-            _, ok, tries, _ = rc
-            return (~ok) & (tries < solver.max_regularisations)
+            def reg_cond(rc):
+                _, ok, tries, _ = rc
+                return (~ok) & (tries < solver.max_regularisations)
 
-        def reg_body(rc):
-            _, _, tries, mu = rc
-            mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
-            sol, ok = solve_with(mu)
-            return sol, ok, tries + 1, mu
+            def reg_body(rc):
+                _, _, tries, mu = rc
+                mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
+                sol, ok = solve_with(mu)
+                return sol, ok, tries + 1, mu
 
-        sol0, ok0 = solve_with(jnp.zeros((), dtype=z.dtype))
-        sol, _, _, _ = jax.lax.while_loop(
-            reg_cond, reg_body, (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype))
-        )
-        dz, lam_new = sol[:n], sol[n:]
+            sol0, ok0 = solve_with(jnp.zeros((), dtype=z.dtype))
+            sol, _, _, _ = jax.lax.while_loop(
+                reg_cond, reg_body,
+                (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
+            dz, lam_new = sol[:n], sol[n:]
 
-        rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
-        phi0 = e + rho_new * jnp.sum(jnp.abs(c))
-        slope = grad_e @ dz - rho_new * jnp.sum(jnp.abs(c))
-        full_grad, full_e, full_c = gradient_and_parts(z + dz, lam_new)
-        full_g = jnp.max(jnp.abs(full_grad))
-        full_cn = jnp.max(jnp.abs(full_c), initial=0.0)
-        full_ok = (full_g <= 0.5 * res_g) & (full_cn <= jnp.maximum(0.5 * res_c,
-                                                                  solver.constraint_tol))
-        armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
+            rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
+            phi0 = e + rho_new * jnp.sum(jnp.abs(c))
+            slope = grad_e @ dz - rho_new * jnp.sum(jnp.abs(c))
+            full_grad, full_e, full_c = gradient_and_parts(z + dz, lam_new)
+            full_g = jnp.max(jnp.abs(full_grad))
+            full_cn = jnp.max(jnp.abs(full_c), initial=0.0)
+            full_ok = (full_g <= 0.5 * res_g) & (full_cn <= jnp.maximum(0.5 * res_c,
+                                                                      solver.constraint_tol))
+            armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
 
-        def ls_cond(lc):
-            alpha, accepted, k = lc
-            return (~accepted) & (k < solver.max_backtracks)
+            def ls_cond(lc):
+                alpha, accepted, tries = lc
+                return (~accepted) & (tries < solver.max_backtracks)
 
-        def ls_body(lc):
-            alpha, _, k = lc
-            alpha = 0.5 * alpha
-            accepted = merit(z + alpha * dz, rho_new) <= phi0 + 1e-4 * alpha * slope
-            return alpha, accepted, k + 1
+            def ls_body(lc):
+                alpha, _, tries = lc
+                alpha = 0.5 * alpha
+                accepted = merit(z + alpha * dz, rho_new) <= phi0 + 1e-4 * alpha * slope
+                return alpha, accepted, tries + 1
 
-        alpha, accepted, _ = jax.lax.while_loop(
-            ls_cond, ls_body, (jnp.ones((), z.dtype), full_ok | armijo_full,
-                               jnp.zeros((), jnp.int32))
-        )
-        finite = finite & jnp.all(jnp.isfinite(dz))
+            alpha, accepted, _ = jax.lax.while_loop(
+                ls_cond, ls_body, (jnp.ones((), z.dtype), full_ok | armijo_full,
+                                   jnp.zeros((), jnp.int32)))
+            finite = finite & jnp.all(jnp.isfinite(dz))
+            return z + alpha * dz, lam + alpha * (lam_new - lam), rho_new, accepted, finite
+
+        def stay(_):
+            return z, lam, rho, jnp.ones((), bool), jnp.ones((), bool)
+
+        z_try, lam_try, rho_new, accepted, finite_step = jax.lax.cond(
+            converged | ~finite_residual, stay, newton_step, None)
+        finite = finite_residual & finite_step
         stop = converged | ~finite | ~accepted
         code = jnp.where(converged, 0, jnp.where(~finite, 3, jnp.where(~accepted, 2, 1)))
         code = code.astype(jnp.int32)
-        z_next = jnp.where(stop, z, z + alpha * dz)
-        lam_next = jnp.where(stop, lam, lam + alpha * (lam_new - lam))
-        # The KKT matrix at the current point: when the loop stops here it is the matrix at
-        # the returned solution, reused by the implicit-function-theorem tangent.
-        kkt = _kkt_matrix(hessian, jacobian, jnp.zeros((), z.dtype))
+        z_next = jnp.where(stop, z, z_try)
+        lam_next = jnp.where(stop, lam, lam_try)
         return (z_next, lam_next, rho_new, step + jnp.where(stop, 0, 1).astype(jnp.int32), stop,
-                code, res_g, res_c, kkt)
+                code, res_g, res_c)
 
     def cond(carry):
-        _, _, _, step, stop, _, _, _, _ = carry
+        _, _, _, step, stop, _, _, _ = carry
         return (~stop) & (step < solver.max_steps)
 
-    dtype = z0.dtype
-    m = lam0.shape[0]
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
-            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype),
-            jnp.full((n + m, n + m), jnp.nan, dtype))
-    z, lam, _, steps, _, code, res_g, res_c, kkt = jax.lax.while_loop(cond, body, init)
-    return z, lam, (code == 0, steps, code, res_g, res_c), kkt
+            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype))
+    z, lam, _, steps, _, code, res_g, res_c = jax.lax.while_loop(cond, body, init)
+
+    def kkt_at_solution():
+        """KKT matrix (route's form) at the returned point, for the implicit tangent."""
+        jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
+        zero = jnp.zeros((), dtype)
+        return route.kkt(lagrangian_hessian(z, lam), jacobian, zero, zero)
+
+    return z, lam, (code == 0, steps, code, res_g, res_c), (kkt_at_solution, route)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
@@ -222,8 +267,8 @@ def _equilibrium(objective, hessian_fn, solver, args, z0, lam0):
 
 def _kkt_residual(objective, z, lam, args):
     def lagrangian(zz):
-        e, c = objective(zz, args)
-        return e + jnp.dot(lam, c), c
+        terms, c = objective(zz, args)
+        return jnp.sum(terms) + jnp.dot(lam, c), c
 
     grad, c = jax.grad(lagrangian, has_aux=True)(z)
     return jnp.concatenate([grad, c])
@@ -233,12 +278,15 @@ def _kkt_residual(objective, z, lam, args):
 def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     args, z0, lam0 = primals
     args_dot = tangents[0]
-    z, lam, stats, kkt = _newton(objective, hessian_fn, solver, args, z0, lam0)
+    z, lam, stats, (kkt_at_solution, route) = _newton(objective, hessian_fn, solver, args, z0,
+                                                      lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
-    solution_dot = -jnp.linalg.solve(kkt, residual_dot)
+    # The KKT matrix at the solution, solved on the route of the Newton iterations (the
+    # sparse route reuses its symbolic analysis).
+    solution_dot = -route.solve(kkt_at_solution(), residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
@@ -259,17 +307,22 @@ def solve_equilibrium(
 
     Args:
         objective: ``(state, args) -> (energy, constraints)``: the total potential energy
-            [J] (scalar) and the equality constraints ``[m]`` (``m`` may be 0). One function
+            [J], a scalar or a vector of terms ``[k]`` whose sum it is (each term's
+            gradient sets the scale of the stopping rule, so pass internal and external
+            terms separately: with a scalar, a problem whose loads balance internally has
+            only ``atol``), and the equality constraints ``[m]`` (``m`` may be 0). One function
             for both, so that shared work (the structure's kinematics) is done once.
         initial_state: PyTree initial guess (e.g. the previous load step).
         args: PyTree of parameters; derivatives of the result w.r.t. it come from the
             implicit function theorem.
         solver: :class:`NewtonKKT` settings.
         initial_multipliers: ``[m]`` warm start for the multipliers.
-        hessian: optional ``(state, multipliers, args) -> [n, n]``, the exact Hessian of the
+        hessian: optional ``(state, multipliers, args) -> [n, n]`` or a list of blocks
+            ``(rows, cols, values)`` (``jaxtube._solver.kkt_linear``), the exact Hessian of the
             Lagrangian ``E + multipliers . c`` w.r.t. the state flattened as by
             ``jax.flatten_util.ravel_pytree``; a model that knows its sparsity assembles it
-            much faster than the default (dense forward-over-reverse autodiff).
+            much faster than the default (dense forward-over-reverse autodiff), and blocks
+            open the sparse KKT route.
 
     Works under ``jit``, ``vmap`` (each member reports its own convergence), ``grad`` and
     ``jvp``. Requires float64 (see the README): float32 cannot reach Newton tolerances.
@@ -283,7 +336,7 @@ def solve_equilibrium(
 
     def flat_objective(z, a):
         energy, constraints = objective(unravel(z), a)
-        return energy, jnp.reshape(constraints, (-1,))
+        return jnp.reshape(energy, (-1,)), jnp.reshape(constraints, (-1,))
 
     flat_hessian = None
     if hessian is not None:

@@ -1,0 +1,224 @@
+"""The KKT linear systems of the Newton solver: dense, or sparse from Hessian blocks (KLU).
+
+**Hessian blocks (the interface a model implements).** A model that knows the sparsity of
+its Lagrangian Hessian returns it from the ``hessian`` callable of ``solve_equilibrium`` as
+a list of blocks ``(rows, cols, values)``:
+
+- ``rows``, ``cols``: *static* integer numpy arrays of one shape (positions in the state
+  flattened as by ``jax.flatten_util.ravel_pytree``), fixed for a structure;
+- ``values``: a JAX float array of that same shape (e.g. ``[B, 6, 6]`` element Hessians of
+  ``B`` joints over the 6 rotations of their two segments).
+
+The Hessian is the sum of all blocks, entries at the same position added (blocks may
+overlap: two joints share a segment). Its symmetric part is used (each entry counts half
+at ``(r, c)`` and half at ``(c, r)``), as in the dense route. New element kinds (free point
+nodes, tension-only lines, pulleys) add their own blocks; nothing here changes.
+
+**Two routes, one system.** Each Newton iteration solves (``mu`` regularises the Hessian,
+``delta`` the multipliers; ``solve_equilibrium`` explains both)::
+
+    [H + mu I   J^T     ] [dz ]   [r_z]
+    [J          -delta I] [lam] = [r_c]
+
+- :class:`DenseKKT`: the matrix assembled dense (scatter-add of the blocks) and
+  ``jnp.linalg.solve`` (LAPACK LU). Cost cubic in ``n + m``; the fastest for small
+  structures and the only route off the CPU.
+- :class:`SparseKKT`: KLU (``klujax``) on a pattern fixed once per structure: the blocks'
+  positions, the diagonal, the constraint Jacobian (stored dense: ``m`` rows and columns;
+  the constraints of a tree-shaped structure are dense along the tree path anyway) and the
+  multiplier diagonal, de-duplicated in numpy at trace time. The values are a scatter-add
+  of the block values into that pattern (the dense matrix is never formed), and the
+  symbolic analysis (fill-reducing ordering) is done once per pattern and reused by every
+  factorisation, including the implicit-function-theorem tangent's.
+
+The route is chosen by ``NewtonKKT.linear_solver`` (``"auto"``: sparse on the CPU when the
+model gives blocks and ``n + m >= SPARSE_CROSSOVER``, measured in
+``experiments/bench_kkt.py``).
+
+**klujax and JAX's global configuration.** ``import klujax`` sets ``jax_enable_x64`` and
+``jax_platform_name = "cpu"`` for the whole process (klujax 0.5.2), which on a GPU machine
+would pin every later computation to the CPU. It is imported here lazily, only when the
+sparse route is taken, and both settings are restored right after (:func:`klujax_module`).
+A symbolic analysis is a C++ handle baked into the compiled program: the Python object is
+kept alive in a module-level cache for the life of the process (one per distinct pattern).
+Only ``solve_with_symbol`` is used (it factorises and frees within the call); klujax's
+``factor`` inside a loop would leak a numeric handle per iteration.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Size ``n + m`` of the KKT system from which ``linear_solver="auto"`` takes the sparse
+#: route (on the CPU, for a model that gives Hessian blocks). Measured crossover: see
+#: ``experiments/bench_kkt.py`` and ``experiments/results/bench_kkt.txt``.
+SPARSE_CROSSOVER = 120
+
+LINEAR_SOLVERS = ("auto", "dense", "sparse")
+
+_KLUJAX = None
+_SYMBOLS: dict = {}  # pattern digest -> (Ai, Aj, KLUSymbolic), kept alive for the process
+
+
+def klujax_module():
+    """``klujax``, imported on first use with JAX's ``jax_platform_name`` and
+    ``jax_enable_x64`` restored to what they were before the import."""
+    global _KLUJAX
+    if _KLUJAX is None:
+        values = jax.config.values
+        saved = {name: values[name] for name in ("jax_platform_name", "jax_enable_x64")}
+        try:
+            import klujax
+        finally:
+            for name, value in saved.items():
+                jax.config.update(name, value)
+        _KLUJAX = klujax
+    return _KLUJAX
+
+
+def is_blocks(hessian) -> bool:
+    """Whether a ``hessian`` callable's output is a list of blocks (not a dense matrix)."""
+    return isinstance(hessian, (list, tuple))
+
+
+def _flat_blocks(blocks):
+    rows = np.concatenate([np.asarray(r, dtype=np.int64).reshape(-1) for r, _, _ in blocks])
+    cols = np.concatenate([np.asarray(c, dtype=np.int64).reshape(-1) for _, c, _ in blocks])
+    values = jnp.concatenate([jnp.reshape(v, (-1,)) for _, _, v in blocks])
+    return rows, cols, values
+
+
+def dense_hessian(blocks, n: int):
+    """The ``[n, n]`` matrix of a list of Hessian blocks (scatter-add), symmetrised."""
+    if not is_blocks(blocks):
+        return 0.5 * (blocks + blocks.T)
+    rows, cols, values = _flat_blocks(blocks)
+    matrix = jnp.zeros((n, n), values.dtype).at[rows, cols].add(values)
+    return 0.5 * (matrix + matrix.T)
+
+
+class DenseKKT:
+    """The dense route: ``[n + m, n + m]`` matrix and LAPACK LU (``jnp.linalg.solve``).
+
+    The Hessian it works with is a dense symmetric ``[n, n]`` matrix (:meth:`hessian`).
+    """
+
+    def __init__(self, n: int, m: int):
+        self.n, self.m = n, m
+
+    def hessian(self, output):
+        """The Hessian in this route's form from a ``hessian`` callable's output."""
+        return dense_hessian(output, self.n)
+
+    @staticmethod
+    def hessian_diagonal(hessian):
+        return jnp.diag(hessian)
+
+    @staticmethod
+    def hessian_times(hessian, vector):
+        return hessian @ vector
+
+    def kkt(self, hessian, jacobian, mu, delta):
+        """KKT values for :meth:`solve`: here the dense matrix ``[n + m, n + m]``."""
+        n, m, dtype = self.n, self.m, hessian.dtype
+        top = jnp.concatenate([hessian + mu * jnp.eye(n, dtype=dtype), jacobian.T], axis=1)
+        bottom = jnp.concatenate([jacobian, -delta * jnp.eye(m, dtype=dtype)], axis=1)
+        return jnp.concatenate([top, bottom], axis=0)
+
+    @staticmethod
+    def solve(kkt, rhs):
+        return jnp.linalg.solve(kkt, rhs)
+
+
+class SparseKKT:
+    """The sparse route: KLU on a static pattern built from the blocks' positions.
+
+    Built once per structure (at trace time) from one output of the ``hessian`` callable
+    (only its static ``rows`` and ``cols`` are used); the Hessian it works with is the
+    flat vector of block values (:meth:`hessian`), in the order of those blocks.
+    """
+
+    def __init__(self, blocks, n: int, m: int):
+        klujax = klujax_module()
+        self.klujax = klujax
+        self.n, self.m = n, m
+        rows, cols, _ = _flat_blocks(blocks)
+        self.block_rows, self.block_cols = rows, cols
+        self.on_diagonal = np.flatnonzero(rows == cols)
+        diagonal = np.arange(n)
+        jac_rows = np.repeat(np.arange(m), n)
+        jac_cols = np.tile(np.arange(n), m)
+        multiplier = n + np.arange(m)
+        # Every contribution's position, in the order of kkt() below.
+        all_rows = np.concatenate([rows, cols, diagonal, n + jac_rows, jac_cols, multiplier])
+        all_cols = np.concatenate([cols, rows, diagonal, jac_cols, n + jac_rows, multiplier])
+        size = n + m
+        keys, slot = np.unique(all_rows * size + all_cols, return_inverse=True)
+        self.slot = slot.astype(np.int32).reshape(-1)
+        self.nnz = int(keys.size)
+        self.Ai = (keys // size).astype(np.int32)
+        self.Aj = (keys % size).astype(np.int32)
+        digest = hashlib.sha1(self.Ai.tobytes() + self.Aj.tobytes()
+                              + np.int64(size).tobytes()).hexdigest()
+        if digest not in _SYMBOLS:
+            with jax.ensure_compile_time_eval():
+                symbol = klujax.analyze(self.Ai, self.Aj, size)
+            _SYMBOLS[digest] = (self.Ai, self.Aj, symbol)
+        self.symbol = _SYMBOLS[digest][2]
+
+    def hessian(self, output):
+        """The flat block values ``[nnz_blocks]`` of a ``hessian`` callable's output."""
+        rows, cols, values = _flat_blocks(output)
+        if not (np.array_equal(rows, self.block_rows) and np.array_equal(cols, self.block_cols)):
+            raise ValueError("the hessian callable's block positions changed between calls; "
+                             "they must be static for a structure.")
+        return values
+
+    def hessian_diagonal(self, values):
+        return jnp.zeros((self.n,), values.dtype).at[self.block_rows[self.on_diagonal]].add(
+            values[self.on_diagonal])
+
+    def hessian_times(self, values, vector):
+        """``H_sym @ vector`` from the blocks (the symmetric part, as the KKT matrix)."""
+        forward = jax.ops.segment_sum(values * vector[self.block_cols], self.block_rows,
+                                      self.n)
+        backward = jax.ops.segment_sum(values * vector[self.block_rows], self.block_cols,
+                                       self.n)
+        return 0.5 * (forward + backward)
+
+    def kkt(self, values, jacobian, mu, delta):
+        """KKT values ``[nnz]`` on the pattern ``(Ai, Aj)`` (scatter-add of the blocks)."""
+        dtype = values.dtype
+        half = 0.5 * values
+        jac = jnp.reshape(jacobian, (-1,))
+        contributions = jnp.concatenate([
+            half, half, jnp.full((self.n,), mu, dtype), jac, jac,
+            jnp.full((self.m,), -delta, dtype)])
+        return jax.ops.segment_sum(contributions, self.slot, self.nnz)
+
+    def solve(self, kkt, rhs):
+        return self.klujax.solve_with_symbol(self.Ai, self.Aj, kkt, rhs, self.symbol)
+
+
+def choose_route(linear_solver: str, blocks_given: bool, size: int) -> str:
+    """``"dense"`` or ``"sparse"`` for a ``NewtonKKT.linear_solver`` setting."""
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(f"NewtonKKT.linear_solver must be one of {LINEAR_SOLVERS}, got "
+                         f"{linear_solver!r}.")
+    if linear_solver == "dense":
+        return "dense"
+    on_cpu = jax.default_backend() == "cpu"
+    if linear_solver == "sparse":
+        if not blocks_given:
+            raise ValueError("NewtonKKT(linear_solver='sparse') needs a model whose hessian "
+                             "returns blocks (see jaxtube._solver.kkt_linear); this one returns a "
+                             "dense matrix or none.")
+        if not on_cpu:
+            raise ValueError("NewtonKKT(linear_solver='sparse') runs on the CPU only (KLU); "
+                             f"the default backend is {jax.default_backend()!r}.")
+        return "sparse"
+    return "sparse" if blocks_given and on_cpu and size >= SPARSE_CROSSOVER else "dense"
