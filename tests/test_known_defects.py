@@ -3,7 +3,7 @@
 must be removed.
 
 **False convergence at the tension-field law's wrinkling onset.** The Newton-KKT stopping
-rule (``jaxtube/_solver.py``) accepts ``max|grad L| <= rtol * scale + atol`` with
+rule (``jaxtube/_solver/newton_kkt.py``) accepts ``max|grad L| <= rtol * scale + atol`` with
 ``scale = max(|grad E|, |J^T lambda|, |H z|)``. In the case below it accepts a residual
 of 4.9e-6 N m, so the scale was at least 5e4 N m while the moments in play are 0.4 N m:
 by elimination the ``|H z|`` term, which explodes where a joint sits exactly on the
