@@ -225,10 +225,7 @@ class CantileverRig:
         # along +x from 0 to 1; the clamp-spring tube lies behind the clamp, at 0).
         _, unit = self.template()
         x = np.clip(np.asarray(unit.node_position)[:, 0], 0.0, 1.0)
-        # TODO(merge): structure.spring_joint_topology().node (the engine's one derivation of
-        # which joints carry springs) instead of deriving the list again here.
-        joints = np.asarray([x[structure.joint_node[s]]
-                             for s, spring in enumerate(structure.joint_spring) if spring])
+        joints = x[np.asarray(structure.spring_joint_topology().node, int)]
         position = jnp.broadcast_to(jnp.asarray(joints, float), sol.joint_regime.shape)
         return RigPrediction(force=sol.control_force, converged=sol.converged,
                              iterations=sol.iterations, joint_regime=sol.joint_regime,

@@ -20,26 +20,33 @@ def add_data_argument(parser: argparse.ArgumentParser) -> None:
                                                 "radius_m,length_m,deflection_mm,force_N)")
 
 
+def add_model_size_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--pivots`` and ``--segments``: the size of the model of ``fit`` and ``diagnose``."""
+    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
+                        help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
+    parser.add_argument("--segments", type=positive_int, default=None,
+                        help="rigid segments of the model tube (default 12)")
+
+
+def _positive(text: str, convert, noun: str):
+    """``convert(text)`` if it is a finite number > 0, else an argparse error naming ``noun``."""
+    try:
+        value = convert(text)
+    except ValueError:
+        value = None
+    if value is None or not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive {noun}, found {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer > 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
-    return value
+    return _positive(text, int, "integer")
 
 
 def positive_float(text: str) -> float:
     """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
-    return value
+    return _positive(text, float, "number")
 
 
 def pivot_counts(text: str) -> tuple[int, int, int]:

@@ -43,8 +43,8 @@ from .._figures.plots import before_after_figure, fit_figure, ranking_figure, wh
 from .._json import write_json
 from .common import (
     add_data_argument,
+    add_model_size_arguments,
     load_input,
-    pivot_counts,
     positive_float,
     positive_int,
     write_directory,
@@ -88,10 +88,7 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--noise-N", type=positive_float, default=None,
                         help="force noise standard deviation [N] (default: estimated from "
                              "the scatter of the data, without a model)")
-    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
-                        help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
-    parser.add_argument("--segments", type=positive_int, default=None,
-                        help="rigid segments of the model tube (default 12)")
+    add_model_size_arguments(parser)
     parser.add_argument("--max-additions", type=positive_int, default=3)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 

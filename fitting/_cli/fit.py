@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+import jaxtube as jt
+
 from .._bench.effects import resolve_effect
 from .._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from .._bench.scaling import FORMS, PivotScaling
@@ -39,14 +41,14 @@ from .._calibrate.fit import fit
 from .._calibrate.parameters_file import load_law, predict_from_document
 from .._calibrate.problem import FitError, FitOptions, Prior
 from .._calibrate.result import Z_95
-from .._data import unit_factor
+from .._data.units import MM_PER_M
 from .._figures.plots import fit_figure, prediction_figure
 from .._json import write_json
 from .common import (
     add_data_argument,
+    add_model_size_arguments,
     bad_output_directory,
     load_input,
-    pivot_counts,
     positive_float,
     positive_int,
     write_directory,
@@ -81,10 +83,7 @@ def add_fit(subparsers) -> None:
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--form", choices=FORMS, default="paper",
                         help="pivot scaling: paper A (p r^3)^B, or separate A p^B r^C")
-    parser.add_argument("--pivots", type=pivot_counts, default=(1, 1, 1),
-                        help="pivots per regime: unwrinkled,wrinkled,collapsed (default 1,1,1)")
-    parser.add_argument("--segments", type=positive_int, default=None,
-                        help="rigid segments of the model tube (default 12)")
+    add_model_size_arguments(parser)
     parser.add_argument("--noise-N", type=positive_float, default=None,
                         help="force noise standard deviation [N] (default: estimated)")
     parser.add_argument("--fix", type=_assignment, action="append", default=[],
@@ -150,7 +149,7 @@ def run_fit(args) -> int:
             for curve, force, regime in zip(data, result.force, result.joint_regime):
                 worst = regime.max(axis=-1)
                 for u, f, m, w in zip(curve.deflection, curve.force, force, worst):
-                    writer.writerow([curve.name, f"{u * 1e3:.6g}", f"{f:.6g}", f"{m:.6g}",
+                    writer.writerow([curve.name, f"{u * MM_PER_M:.6g}", f"{f:.6g}", f"{m:.6g}",
                                      f"{m - f:.6g}", int(w)])
 
     write_directory(args.out, {"parameters.json": lambda path: write_json(path, document),
@@ -192,8 +191,8 @@ def run_predict(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     deflection = np.linspace(args.max_deflection_mm / args.points, args.max_deflection_mm,
-                             args.points) * 1e-3
-    pressure = args.pressure_bar * unit_factor("pressure", "bar")
+                             args.points) * jt.unit_factor("length", "mm")
+    pressure = args.pressure_bar * jt.unit_factor("pressure", "bar")
     radius, length = args.radius_m, args.length_m
     try:
         force, sd = predict_from_document(document, pressure, radius, length, deflection)
@@ -203,16 +202,16 @@ def run_predict(args) -> int:
     except RuntimeError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
-    label = (f"{args.pressure_bar:g} bar, r = {args.radius_m * 1e3:g} mm, "
+    label = (f"{args.pressure_bar:g} bar, r = {args.radius_m * MM_PER_M:g} mm, "
              f"L = {args.length_m:g} m ({args.params})")
-    figure = prediction_figure(deflection * 1e3, force, sd, label)
+    figure = prediction_figure(deflection * MM_PER_M, force, sd, label)
 
     def write_csv(path):
         with open(path, "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(["deflection_mm", "force_N", "force_low_N", "force_high_N"])
             for u, f, s in zip(deflection, force, sd):
-                writer.writerow([f"{u * 1e3:.6g}", f"{f:.6g}", f"{f - Z_95 * s:.6g}",
+                writer.writerow([f"{u * MM_PER_M:.6g}", f"{f:.6g}", f"{f - Z_95 * s:.6g}",
                                  f"{f + Z_95 * s:.6g}"])
 
     write_directory(args.out, {"prediction.csv": write_csv,

@@ -45,6 +45,7 @@ import numpy as np
 import jaxtube as jt
 
 from .._calibrate.parameters_file import load_law
+from .._data.units import MM_PER_M
 from .._json import finite_or_none, write_json
 from .common import bad_output_directory, positive_float, positive_int, write_directory
 from .kite_fem import simulate_kite_fem
@@ -143,7 +144,7 @@ def _simulate(args) -> int:
         spec = spec._replace(params=params)
         report.progress(f"bending law of every tube from {args.params}")
     joint_node = _joint_nodes(spec)
-    target = (f"to {meta.path_values[-1] * 1e3:g} mm" if meta.control == "displacement"
+    target = (f"to {meta.path_values[-1] * MM_PER_M:g} mm" if meta.control == "displacement"
               else f"to load factor {meta.path_values[-1]:g}")
     report.progress(
         f"loaded {args.spec}: {len(structure.tube_names)} tube(s), {structure.node_count} "
@@ -215,11 +216,11 @@ def path_table(spec: jt.LoadedSpec, solution: jt.Solution, joint_node) -> dict[s
     return {
         "step": np.arange(1, steps + 1),
         "load_factor": np.broadcast_to(load_factor, (steps,)),
-        "control_displacement_mm": displacement * 1e3,
+        "control_displacement_mm": displacement * MM_PER_M,
         "control_force_N": force,
-        "control_node_dx_mm": moved[:, 0] * 1e3,
-        "control_node_dy_mm": moved[:, 1] * 1e3,
-        "control_node_dz_mm": moved[:, 2] * 1e3,
+        "control_node_dx_mm": moved[:, 0] * MM_PER_M,
+        "control_node_dy_mm": moved[:, 1] * MM_PER_M,
+        "control_node_dz_mm": moved[:, 2] * MM_PER_M,
         "max_moment_Nm": (np.linalg.norm(moment, axis=-1).max(axis=-1) if has_joints
                           else np.zeros(steps)),
         "max_bending_moment_Nm": (np.linalg.norm(moment[..., :2], axis=-1).max(axis=-1)

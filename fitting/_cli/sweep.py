@@ -42,7 +42,7 @@ import numpy as np
 import jaxtube as jt
 
 from .._calibrate.parameters_file import load_law
-from .._data import unit_factor
+from .._data.units import BAR_PER_PA, MM_PER_M
 from .._json import write_json
 from .._sweep.sweep import SweepSettings, sweep
 from .common import bad_output_directory, positive_float, positive_int, write_directory
@@ -53,7 +53,7 @@ QUANTITIES = (  # (result field, file, title, unit, factor from SI)
      1.0),
     ("wrinkling_load", "wrinkling_load.png", "wrinkling load (root at M_w)", "N", 1.0),
     ("collapse_load", "collapse_load.png", "collapse load (root at M_c)", "N", 1.0),
-    ("tip_deflection", "tip_deflection.png", "tip deflection at the given load", "mm", 1e3),
+    ("tip_deflection", "tip_deflection.png", "tip deflection at the given load", "mm", MM_PER_M),
 )
 MAX_PANELS = 4
 
@@ -150,8 +150,9 @@ def run_sweep(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    radius = args.radius_m if args.radius_m is not None else args.radius_mm * 1e-3
-    pressure = args.pressure_bar * unit_factor("pressure", "bar")
+    radius = (args.radius_m if args.radius_m is not None
+              else args.radius_mm * jt.unit_factor("length", "mm"))
+    pressure = args.pressure_bar * jt.unit_factor("pressure", "bar")
     settings = SweepSettings()
     overrides = {"segments": args.segments, "chunk_size": args.chunk_size}
     settings = SweepSettings(**{**{k: getattr(settings, k) for k in
@@ -209,7 +210,7 @@ def _summary(args, result, reasons, law_text: str, seconds: float) -> dict:
 
 def write_csv(path: Path, result, reasons) -> None:
     """``sweep.csv`` (columns in the module docstring); blank where a value is missing."""
-    columns = [("pressure_bar", result.pressure * 1e-5), ("radius_m", result.radius),
+    columns = [("pressure_bar", result.pressure * BAR_PER_PA), ("radius_m", result.radius),
                ("length_m", result.length), ("tip_load_N", result.tip_load),
                ("pr3_Nm", result.pressure * result.radius**3),
                ("initial_stiffness_Nm2", result.initial_stiffness),
@@ -217,7 +218,7 @@ def write_csv(path: Path, result, reasons) -> None:
                ("collapse_moment_Nm", result.collapse_moment),
                ("wrinkling_load_N", result.wrinkling_load),
                ("collapse_load_N", result.collapse_load),
-               ("tip_deflection_mm", result.tip_deflection * 1e3),
+               ("tip_deflection_mm", result.tip_deflection * MM_PER_M),
                ("converged", (~result.failed).astype(int)),
                ("newton_iterations", result.iterations),
                ("wrinkling_moment_mismatch", result.wrinkling_mismatch),
@@ -250,8 +251,8 @@ def heatmap(result, field: str, title: str, unit: str, factor: float):
     from matplotlib.colors import LogNorm
 
     values = getattr(result, field) * factor
-    pressure_bar = result.pressure[:, 0, 0] * 1e-5
-    radius_mm = result.radius[0, :, 0] * 1e3
+    pressure_bar = result.pressure[:, 0, 0] * BAR_PER_PA
+    radius_mm = result.radius[0, :, 0] * MM_PER_M
     lengths = np.unique(np.linspace(0, values.shape[2] - 1,
                                     min(values.shape[2], MAX_PANELS)).round().astype(int))
     figure, axes = plt.subplots(1, lengths.size, figsize=(5.2 * lengths.size + 0.8, 4.4),

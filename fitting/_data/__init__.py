@@ -20,7 +20,7 @@ Columns (in any order):
     the deflection is the vertical tip displacement from the unloaded shape.
 
 - One column per quantity, its unit given by the suffix; values are converted to SI
-  (exactly one column per quantity):
+  (exactly one column per quantity; the factors are those of :data:`jaxtube.UNITS`):
 
   - pressure (gauge, > 0) [Pa]: ``pressure_bar``, ``pressure_kPa`` or ``pressure_Pa``;
   - radius (> 0) [m]: ``radius_m`` or ``radius_mm``;
@@ -56,7 +56,5 @@ from __future__ import annotations
 from .curves import MeasuredCurve, MeasuredData
 from .errors import DataError, DataProblem
 from .load import load_measurements
-from .units import UNITS, unit_factor
 
-__all__ = ["DataError", "DataProblem", "MeasuredCurve", "MeasuredData", "UNITS",
-           "load_measurements", "unit_factor"]
+__all__ = ["DataError", "DataProblem", "MeasuredCurve", "MeasuredData", "load_measurements"]

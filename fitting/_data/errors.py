@@ -1,49 +1,45 @@
-"""Problems found in a measurement file, and the one error that lists them all."""
+"""Problems found in a table file, and the one error that lists them all.
+
+Problems are the engine's :class:`jaxtube.Problem` records (file, line, column, message),
+gathered by a :class:`jaxtube.ProblemReport` as the spec reader's are; the errors here only
+say how many there were and list them, one per line.
+"""
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
-# At most this many problems are spelled out in a DataError message.
-MAX_LISTED_PROBLEMS = 100
+import jaxtube as jt
+
+#: One problem found in a measurement file: ``source:line: column 'name': message``
+#: (``line`` 1-based, the header is line 1; ``column`` ``None`` for a problem with no
+#: column, such as an empty file or a row with the wrong number of fields).
+DataProblem = jt.Problem
 
 
+class TableFileError(ValueError):
+    """Invalid table file; ``problems`` lists every :class:`jaxtube.Problem` found, in file
+    order, and the message spells out the first ``max_listed`` of them.
 
-
-@dataclasses.dataclass(frozen=True)
-class DataProblem:
-    """One problem found in a measurement file.
-
-    Attributes:
-        source: the file.
-        line: 1-based line number in the file (the header is line 1).
-        column: the column name, or ``None`` for a problem with no column (empty file, a
-            row with the wrong number of fields).
-        message: what was expected and what was found.
+    Subclasses name the kind of file (``file_kind``) and how many problems they list.
     """
 
-    source: str
-    line: int
-    column: str | None
-    message: str
+    file_kind = "table"
+    max_listed = 100
 
-    def __str__(self) -> str:
-        where = f"{self.source}:{self.line}"
-        if self.column is not None:
-            where += f": column {self.column!r}"
-        return f"{where}: {self.message}"
+    def __init__(self, problems: Sequence[jt.Problem]):
+        self.problems = tuple(problems)
+        self.source = self.problems[0].source if self.problems else ""
+        count = len(self.problems)
+        lines = [f"{count} problem{'s' if count != 1 else ''} in {self.file_kind} file "
+                 f"{self.source}:"]
+        lines += [f"  {problem}" for problem in self.problems[:self.max_listed]]
+        if count > self.max_listed:
+            lines.append(f"  ... and {count - self.max_listed} more (see .problems)")
+        super().__init__("\n".join(lines))
 
 
-class DataError(ValueError):
+class DataError(TableFileError):
     """Invalid measurement data; ``problems`` lists every problem found, in file order."""
 
-    def __init__(self, source: str, problems: Sequence[DataProblem]):
-        self.source = source
-        self.problems = tuple(problems)
-        count = len(self.problems)
-        lines = [f"{count} problem{'s' if count != 1 else ''} in measurement file {source}:"]
-        lines += [f"  {problem}" for problem in self.problems[:MAX_LISTED_PROBLEMS]]
-        if count > MAX_LISTED_PROBLEMS:
-            lines.append(f"  ... and {count - MAX_LISTED_PROBLEMS} more (see .problems)")
-        super().__init__("\n".join(lines))
+    file_kind = "measurement"

@@ -10,14 +10,16 @@ import math
 import os
 from pathlib import Path
 
+import jaxtube as jt
+
 from .curves import MeasuredCurve, MeasuredData
-from .errors import DataError, DataProblem
+from .errors import DataError
 from .setups import _setup_problem
 from .units import (
+    COLUMN_UNITS,
     OPTIONAL_COLUMNS,
     QUANTITIES,
     SPECIMEN_QUANTITIES,
-    UNITS,
     accepted_columns,
     to_si,
 )
@@ -53,8 +55,8 @@ def _parse_header(header: list[str], problem) -> list[str | None]:
         quantity, underscore, unit = column.partition("_")
         if column in ("curve", "setup") or column in OPTIONAL_COLUMNS:
             roles[column] = column
-        elif underscore and quantity in UNITS:
-            if unit in UNITS[quantity]:
+        elif underscore and quantity in COLUMN_UNITS:
+            if unit in COLUMN_UNITS[quantity]:
                 by_quantity[quantity].append(column)
                 roles[column] = quantity
             else:
@@ -125,15 +127,15 @@ def load_measurements(path: str | os.PathLike) -> MeasuredData:
     """
     path = Path(path)
     source = str(path)
-    problems: list[DataProblem] = []
+    report = jt.ProblemReport(source)
 
     def problem(line: int, column: str | None, message: str) -> None:
-        problems.append(DataProblem(source, line, column, message))
+        report.add("", message, line=line, column=column)
 
     def fail() -> DataError:
         order = {column: i for i, column in enumerate(header)} if header else {}
-        problems.sort(key=lambda p: (p.line, order.get(p.column, len(order))))
-        return DataError(source, problems)
+        return DataError(sorted(report.problems,
+                                key=lambda p: (p.line, order.get(p.column, len(order)))))
 
     header: list[str] = []
     raw = path.read_bytes()
@@ -248,7 +250,7 @@ def load_measurements(path: str | os.PathLike) -> MeasuredData:
                     f"curve {name!r} has 1 usable point (line {usable[0].line}); "
                     "expected at least 2")
 
-    if problems:
+    if len(report):
         raise fail()
 
     curves = []

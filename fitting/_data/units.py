@@ -1,27 +1,28 @@
-"""The workbench's one units table: quantity -> unit suffix -> factor to SI.
+"""Units of the measurement file's columns, from the engine's one table (:data:`jaxtube.UNITS`).
 
-Measurement files name their units in the column names (``pressure_bar``, ``radius_mm``);
-the command line's flags do too (``--pressure-bar``). Every conversion of the workbench goes
-through :data:`UNITS`. Factors are held as text and converted with ``decimal.Decimal(str(.))``,
-so a conversion is exact in decimal before rounding to float64 whether a factor is a string or
-a float: the engine's table can replace this one with a one-line change
-(``UNITS = jt.UNITS``).
+Measurement files name their units in the column names (``pressure_bar``, ``radius_mm``).
+Each column measures a physical quantity of the engine's table (radius, length and deflection
+are lengths); the factors to SI are the table's exact decimals, so a conversion is exact in
+decimal before rounding to float64.
 """
 
 from __future__ import annotations
 
 import decimal
 from collections.abc import Mapping
+from types import MappingProxyType
 
-#: Quantity -> unit suffix -> factor to SI (value_SI = value * factor).
-UNITS: Mapping[str, Mapping[str, str | float]] = {
-    "pressure": {"bar": "1E+5", "kPa": "1E+3", "Pa": "1"},
-    "radius": {"m": "1", "mm": "1E-3"},
-    "length": {"m": "1", "mm": "1E-3"},
-    "deflection": {"mm": "1E-3", "m": "1"},
-    "force": {"N": "1", "kN": "1E+3"},
+import jaxtube as jt
+
+#: Column quantity -> the physical quantity of :data:`jaxtube.UNITS` it is measured in.
+COLUMN_QUANTITY = {
+    "pressure": "pressure",
+    "radius": "length",
+    "length": "length",
+    "deflection": "length",
+    "force": "force",
 }
-QUANTITIES = tuple(UNITS)
+QUANTITIES = tuple(COLUMN_QUANTITY)
 # Specimen quantities: positive, and constant within a curve.
 SPECIMEN_QUANTITIES = ("pressure", "radius", "length")
 OPTIONAL_COLUMNS = ("weight", "note")
@@ -33,22 +34,26 @@ DEFAULT_UNITS = {
     "deflection": "mm",
     "force": "N",
 }
+#: Column quantity -> accepted unit suffixes, in the order messages list them: the default
+#: unit first, then the others in the engine's table order.
+COLUMN_UNITS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    quantity: (DEFAULT_UNITS[quantity],
+               *(unit for unit in jt.UNITS[physical] if unit != DEFAULT_UNITS[quantity]))
+    for quantity, physical in COLUMN_QUANTITY.items()
+})
+#: Factors from SI to the units that tables, figures and messages show.
+BAR_PER_PA = 1 / jt.unit_factor("pressure", "bar")
+MM_PER_M = 1 / jt.unit_factor("length", "mm")
 # 28 significant digits: exact for any float64 repr (<= 17 digits) times a power of ten.
 DECIMAL_CONTEXT = decimal.Context(prec=28)
 
 
 def _factor(quantity: str, unit: str) -> decimal.Decimal:
-    return decimal.Decimal(str(UNITS[quantity][unit]))
-
-
-def unit_factor(quantity: str, unit: str) -> float:
-    """Factor from ``unit`` to SI for ``quantity`` (``unit_factor("pressure", "bar")`` is
-    ``1e5``): ``value_SI = value * factor``."""
-    return float(_factor(quantity, unit))
+    return jt.UNITS[COLUMN_QUANTITY[quantity]][unit]
 
 
 def accepted_columns(quantity: str) -> str:
-    return ", ".join(f"{quantity}_{unit}" for unit in UNITS[quantity])
+    return ", ".join(f"{quantity}_{unit}" for unit in COLUMN_UNITS[quantity])
 
 
 def to_si(value: decimal.Decimal, quantity: str, unit: str) -> float:
@@ -71,14 +76,11 @@ def format_decimal(value: decimal.Decimal) -> str:
 def check_units(units: Mapping[str, str] | None) -> dict[str, str]:
     chosen = dict(DEFAULT_UNITS)
     for quantity, unit in (units or {}).items():
-        if quantity not in UNITS:
-            raise ValueError(
-                f"unknown quantity {quantity!r} in units; expected one of {', '.join(UNITS)}"
-            )
-        if unit not in UNITS[quantity]:
-            raise ValueError(
-                f"unknown unit {unit!r} for {quantity}; accepted: {', '.join(UNITS[quantity])}"
-            )
+        if quantity not in COLUMN_UNITS:
+            raise ValueError(f"unknown quantity {quantity!r} in units; expected one of "
+                             f"{', '.join(QUANTITIES)}")
+        if unit not in COLUMN_UNITS[quantity]:
+            raise ValueError(f"unknown unit {unit!r} for {quantity}; accepted: "
+                             f"{', '.join(COLUMN_UNITS[quantity])}")
         chosen[quantity] = unit
     return chosen
-

@@ -31,13 +31,18 @@ import math
 import numpy as np
 import scipy.stats
 
-from .._data import unit_factor
+import jaxtube as jt
+
+from .._data.units import BAR_PER_PA, MM_PER_M
 from .._json import finite_row
 
 REGIME_NAMES = ("unwrinkled", "wrinkled", "collapsed")
 RUNS_ALPHA = 0.01
 CHI2_RATIO_SYSTEMATIC = 2.0
 CHI2_ALPHA = 1e-3
+#: Units in which tables and sentences give each specimen quantity: ``(unit, factor from SI)``.
+SPECIMEN_UNITS = {"pressure": ("bar", BAR_PER_PA), "radius": ("mm", MM_PER_M),
+                  "length": ("m", 1.0)}
 #: Bins of the wrinkled extent (outermost wrinkled joint over the length; 0 = none).
 EXTENT_EDGES = (0.0, 1e-9, 0.15, 0.3, 0.5, 1.0 + 1e-9)
 
@@ -194,8 +199,7 @@ def residual_groups(result) -> list[Group]:
     table = point_table(result)
     names = [curve.name for curve in result.problem.data]
     groups = []
-    for quantity, unit, factor in (("pressure", "bar", 1e-5), ("radius", "mm", 1e3),
-                                   ("length", "m", 1.0)):
+    for quantity, (unit, factor) in SPECIMEN_UNITS.items():
         for value in np.unique(table[quantity]):
             keep = table[quantity] == value
             groups.append(_group(quantity, value, f"{value * factor:.4g} {unit}", keep, table,
@@ -219,7 +223,7 @@ def compare(result) -> Comparison:
     rows = result.curve_errors()
     residual = np.concatenate([f - c.force for f, c in zip(result.force, result.problem.data)])
     for row, curve in zip(rows, result.problem.data):
-        row.update(pressure_bar=curve.pressure / unit_factor("pressure", "bar"),
+        row.update(pressure_bar=curve.pressure / jt.unit_factor("pressure", "bar"),
                    radius_m=curve.radius,
                    length_m=curve.length, points=curve.point_count)
     return Comparison(rmse_N=result.rmse, max_error_N=float(np.max(np.abs(residual))),

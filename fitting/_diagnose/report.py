@@ -3,6 +3,8 @@ and the verdict (what ``jaxtube diagnose`` prints and writes to ``report.txt``).
 
 from __future__ import annotations
 
+from .._data.units import MM_PER_M
+
 
 def _ranking_lines(rows) -> list[str]:
     lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'RMSE [N]':>10}{'ΔBIC':>10}"
@@ -55,7 +57,7 @@ def diagnosis_report(diagnosis) -> str:
                  f"{'final':>9}  RMSE [N]")
     for first, last in zip(base.curves, diagnosis.final_comparison.curves):
         lines.append(f"{first['curve']:<18}{first['pressure_bar']:>8.3g}"
-                     f"{first['radius_m'] * 1e3:>8.3g}{first['length_m']:>7.3g}"
+                     f"{first['radius_m'] * MM_PER_M:>8.3g}{first['length_m']:>7.3g}"
                      f"{first['rmse_N']:>10.4g}{last['rmse_N']:>9.4g}")
     lines.append("")
     lines.append("verdict: " + (", ".join(diagnosis.verdict) or "nothing is missing"))

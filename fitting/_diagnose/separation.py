@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._calibrate.result import FitResult
-from .._data import MeasuredData, unit_factor
+from .._data import MeasuredData
+from .compare import SPECIMEN_UNITS
 from .score import _share, absorbed_free_effects, canonical_correlation
 
 #: Below this share of its effect left unabsorbed by a refit of the current model, a
@@ -15,9 +16,6 @@ from .score import _share, absorbed_free_effects, canonical_correlation
 ABSORBED_SHARE = 0.05
 CONFOUNDED_CORRELATION = 0.95
 PLURALS = {"pressure": "pressures", "radius": "radii", "length": "lengths"}
-#: Units the sentences give each specimen quantity in: ``(unit, factor from SI)``.
-QUANTITY_UNITS = {quantity: (unit, 1 / unit_factor(quantity, unit))
-                  for quantity, unit in (("pressure", "bar"), ("radius", "mm"), ("length", "m"))}
 
 
 def _effect_values(result: FitResult) -> dict:
@@ -45,7 +43,7 @@ def _spread_words(data: MeasuredData, quantities) -> tuple[list[str], list[str]]
     varied, fixed = [], []
     for quantity in quantities:
         values = np.unique([getattr(curve, quantity) for curve in data])
-        unit, factor = QUANTITY_UNITS[quantity]
+        unit, factor = SPECIMEN_UNITS[quantity]
         if values.size > 1 and values.max() / values.min() > 1.2:
             varied.append(quantity)
         else:

@@ -8,11 +8,13 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
+import jaxtube as jt
+
 from .._calibrate.result import Z_95, FitResult
-from .._data import unit_factor
+from .._data.units import MM_PER_M
 from .._diagnose.compare import EXTENT_EDGES, point_table
 
-PA_PER_BAR = unit_factor("pressure", "bar")
+PA_PER_BAR = jt.unit_factor("pressure", "bar")
 
 
 def band_grid(result: FitResult) -> np.ndarray:
@@ -44,16 +46,16 @@ def fit_figure(result: FitResult, title: str | None = None) -> Figure:
         row, col = divmod(c, columns)
         top = figure.add_subplot(grid[2 * row, col])
         bottom = figure.add_subplot(grid[2 * row + 1, col], sharex=top)
-        u_mm = deflection[c] * 1e3
+        u_mm = deflection[c] * MM_PER_M
         finite = np.isfinite(sd[c])
         top.fill_between(u_mm[finite], (force[c] - Z_95 * sd[c])[finite],
                          (force[c] + Z_95 * sd[c])[finite], color="C0", alpha=0.25, lw=0,
                          label="95 % band")
         top.plot(u_mm, force[c], color="C0", lw=1.6, label="model")
-        top.plot(curve.deflection * 1e3, curve.force, "o", ms=3.5, color="k",
+        top.plot(curve.deflection * MM_PER_M, curve.force, "o", ms=3.5, color="k",
                  label="measured")
         top.set_title(f"{curve.name}: {curve.pressure / PA_PER_BAR:.3g} bar, r = "
-                      f"{curve.radius * 1e3:.3g} mm, L = {curve.length:.3g} m", fontsize=9)
+                      f"{curve.radius * MM_PER_M:.3g} mm, L = {curve.length:.3g} m", fontsize=9)
         top.set_ylabel("tip force [N]")
         top.grid(alpha=0.3)
         if c == 0:
@@ -62,7 +64,7 @@ def fit_figure(result: FitResult, title: str | None = None) -> Figure:
         bottom.axhspan(-2 * result.noise, 2 * result.noise, color="0.85", lw=0,
                        label="+-2 noise sd")
         bottom.axhline(0.0, color="0.4", lw=0.8)
-        bottom.plot(curve.deflection * 1e3, residual, "o", ms=3, color="C3")
+        bottom.plot(curve.deflection * MM_PER_M, residual, "o", ms=3, color="C3")
         bottom.set_xlabel("tip deflection [mm]")
         bottom.set_ylabel("model - meas. [N]", fontsize=8)
         bottom.grid(alpha=0.3)
@@ -110,7 +112,7 @@ def where_it_fails_figure(result: FitResult, comparison, title: str) -> Figure:
     for c, name in enumerate(names):
         keep = table["curve"] == c
         order = np.argsort(np.abs(table["deflection"][keep]))
-        ax.plot(np.abs(table["deflection"][keep])[order] * 1e3,
+        ax.plot(np.abs(table["deflection"][keep])[order] * MM_PER_M,
                 table["residual"][keep][order], "o-", ms=3, lw=0.8, label=name)
     ax.axhspan(-2 * noise, 2 * noise, color="0.88", lw=0)
     ax.axhline(0, color="0.4", lw=0.8)

@@ -37,39 +37,28 @@ from pathlib import Path
 
 import numpy as np
 
-_MAX_LISTED = 20
-_COORDINATE_SPELLINGS = (("x_m", "y_m", "z_m", 1.0), ("x_mm", "y_mm", "z_mm", 1e-3),
+import jaxtube as jt
+
+from .._data.errors import TableFileError
+
+_COORDINATE_SPELLINGS = (("x_m", "y_m", "z_m", 1.0),
+                         ("x_mm", "y_mm", "z_mm", jt.unit_factor("length", "mm")),
                          ("x", "y", "z", 1.0))
 
 
-@dataclasses.dataclass(frozen=True)
-class ShapeFileProblem:
-    """One problem in a shape file: ``source:line: column 'name': message``."""
-
-    source: str
-    line: int
-    column: str | None
-    message: str
-
-    def __str__(self) -> str:
-        where = f"{self.source}:{self.line}"
-        if self.column is not None:
-            where += f": column {self.column!r}"
-        return f"{where}: {self.message}"
+#: One problem in a shape file: ``source:line: column 'name': message`` (the engine's record).
+ShapeFileProblem = jt.Problem
 
 
-class ShapeFileError(ValueError):
-    """An invalid marker, positions, tubes or triangles file; ``problems`` lists them all."""
+class ShapeFileError(TableFileError):
+    """An invalid marker, positions, tubes or triangles file (``kind``); ``problems`` lists
+    them all."""
 
-    def __init__(self, source: str, kind: str, problems: Sequence[ShapeFileProblem]):
-        self.source = source
-        self.problems = tuple(problems)
-        count = len(self.problems)
-        lines = [f"{count} problem{'s' if count != 1 else ''} in {kind} file {source}:"]
-        lines += [f"  {p}" for p in self.problems[:_MAX_LISTED]]
-        if count > _MAX_LISTED:
-            lines.append(f"  ... and {count - _MAX_LISTED} more (see .problems)")
-        super().__init__("\n".join(lines))
+    max_listed = 20
+
+    def __init__(self, problems: Sequence[jt.Problem], kind: str):
+        self.file_kind = kind
+        super().__init__(problems)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -98,13 +87,13 @@ class _Reader:
         self.path = Path(path)
         self.source = str(path)
         self.kind = kind
-        self.problems: list[ShapeFileProblem] = []
+        self.report = jt.ProblemReport(self.source)
         try:
             with open(self.path, newline="", encoding="utf-8-sig") as handle:
                 table = list(csv.reader(handle))
         except (OSError, UnicodeDecodeError) as error:
-            raise ShapeFileError(self.source, kind, [ShapeFileProblem(
-                self.source, 0, None, f"cannot read the file: {error}")]) from None
+            raise ShapeFileError([ShapeFileProblem(
+                self.source, f"cannot read the file: {error}", line=0)], kind) from None
         while table and not any(cell.strip() for cell in table[-1]):
             table.pop()
         if not table:
@@ -119,19 +108,19 @@ class _Reader:
                                            f"header, found {len(cells)}")
                 continue
             self.rows.append((number, dict(zip(self.header, (c.strip() for c in cells)))))
-        if table and not self.rows and not self.problems:
+        if table and not self.rows and not len(self.report):
             self.problem(2, None, "no data rows after the header")
 
     def problem(self, line: int, column: str | None, message: str) -> None:
-        self.problems.append(ShapeFileProblem(self.source, line, column, message))
+        self.report.add("", message, line=line, column=column)
 
     def fail(self, line: int, column: str | None, message: str):
         self.problem(line, column, message)
         self.finish()
 
     def finish(self) -> None:
-        if self.problems:
-            raise ShapeFileError(self.source, self.kind, self.problems)
+        if len(self.report):
+            raise ShapeFileError(self.report.problems, self.kind)
 
     def require(self, *columns: str) -> None:
         missing = [c for c in columns if c not in self.header]
@@ -213,7 +202,7 @@ def load_positions(path) -> np.ndarray:
     reader.require("node")
     spelling = reader.one_of([("x_m", "y_m", "z_m"), ("x_mm", "y_mm", "z_mm")],
                              "node coordinates")
-    scale = 1.0 if spelling[0] == "x_m" else 1e-3
+    scale = 1.0 if spelling[0] == "x_m" else jt.unit_factor("length", "mm")
     by_node: dict[int, tuple[int, list[float]]] = {}
     for line, row in reader.rows:
         node = reader.integer(line, row, "node")
@@ -259,7 +248,7 @@ def load_tubes(path, node_count: int | None = None) -> list[tuple[str, int, int,
         radii = []
         for column in sorted(radius_columns, key=lambda c: "_end" in c):
             kind, _, unit = _RADIUS_COLUMN.match(column).groups()
-            scale = (0.5 if kind == "diameter" else 1.0) * (1e-3 if unit == "mm" else 1.0)
+            scale = (0.5 if kind == "diameter" else 1.0) * jt.unit_factor("length", unit)
             radii.append(reader.number(line, row, column, lambda v: v >= 0,
                                        "a radius >= 0") * scale)
         segments.append((name, ends[0], ends[1], radii[0], radii[-1]))

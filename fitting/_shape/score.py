@@ -21,6 +21,7 @@ import dataclasses
 
 import numpy as np
 
+from .._data.units import MM_PER_M
 from .markers import CANOPY_GROUP, MarkerSet
 from .registration import RegistrationResult, marker_distances, register
 from .surfaces import TubeSurfaces
@@ -30,7 +31,7 @@ MARKER_CSV_COLUMNS = ("group", "idx", "model_group", "distance_mm", "x_model_m",
 
 
 def _rms_mm(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values ** 2)) * 1e3)
+    return float(np.sqrt(np.mean(values ** 2)) * MM_PER_M)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -73,7 +74,7 @@ class ShapeScore:
                 "marker_centroid_m": np.asarray(found.registration.marker_centroid).tolist(),
                 "spanwise_groups": list(found.registration.spanwise_groups),
                 "spanwise_order_reversed": found.registration.reversed_order,
-                "rms_mm_by_spanwise_order": {("reversed" if k else "as numbered"): v * 1e3
+                "rms_mm_by_spanwise_order": {("reversed" if k else "as numbered"): v * MM_PER_M
                                              for k, v in found.rms_by_order.items()},
                 "starts": found.starts, "converged": found.converged,
                 "message": found.message,
@@ -105,4 +106,4 @@ def score_shape(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="
     canopy_rms = _rms_mm(distance[canopy]) if canopy.any() and surfaces.has_canopy else None
     model_group = tuple("canopy" if g < 0 else surfaces.group_names[g] for g in groups)
     return ShapeScore(_rms_mm(distance[tube]), group_rms, canopy_rms, markers,
-                      distance * 1e3, np.asarray(compared.registered), model_group, found)
+                      distance * MM_PER_M, np.asarray(compared.registered), model_group, found)
