@@ -32,6 +32,7 @@ from ._bench.scaling import (
     wall_stiffness_estimates,
 )
 from ._calibrate.fit import fit, fit_problem
+from ._calibrate.noise import NoiseEstimate, estimate_noise_with_error
 from ._calibrate.parameters_file import load_law
 from ._calibrate.problem import (
     Convergence,
@@ -94,6 +95,7 @@ __all__ = [
     "FitError", "FitOptions", "FitResult", "MeasuredCurve", "MeasuredData",
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
+    "NoiseEstimate", "estimate_noise_with_error",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
     "draw_ranking", "draw_rmse_per_curve",
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
