@@ -1,6 +1,6 @@
 """Spec tables of point nodes, lines, pulleys, canopies and point masses.
 
-Keys (reference; the spec format as a whole is documented in :mod:`jaxtube._spec`)::
+Keys (reference; the spec format as a whole is in docs/spec-format.md)::
 
     [[point]]                          # a point node: three translations, no rotation
     name = "bridle"                    # required, unique, no ":"
