@@ -124,7 +124,7 @@ def _read_points(p, value, ctx, spec: ElementSpec):
     for index, table in enumerate(tables):
         where = key_path("point", index)
         check_keys(p, table, where, ("name", "position_m", "fixed", "mass_kg", "force_N"),
-                      {"name": "a point name (no ':')",
+                   {"name": "a point name (no ':')",
                        "position_m": "a list of 3 numbers [m]"})
         name = read_string(p, table, "name", where)
         if name is not None and (not name.strip() or ":" in name):
@@ -156,46 +156,37 @@ def _read_points(p, value, ctx, spec: ElementSpec):
             spec.points.append(PointNode(name, position, mass=float(mass), force=force))
 
 
-def _rest_length(p, table, where):
-    return read_number(p, table, "rest_length_m", where, default=None, positive=True)
+def _read_ropes(p, value, ctx, spec: ElementSpec, key: str, what: str, make):
+    """``[[line]]`` (two nodes) or ``[[pulley]]`` (three): nodes, stiffness, rest length,
+    name; ``make(refs, stiffness, rest, name)`` builds the element."""
+    tables = read_table(p, value, key, array=True)
+    if tables is None:
+        return
+    count = 2 if key == "line" else 3
+    for index, table in enumerate(tables):
+        where = key_path(key, index)
+        check_keys(p, table, where, ("nodes", "stiffness_N_per_m", "rest_length_m", "name"),
+                   {"nodes": what, "stiffness_N_per_m": "a positive number"})
+        refs = _nodes(p, table, where, ctx, spec, count, what)
+        stiffness = read_number(p, table, "stiffness_N_per_m", where, positive=True)
+        rest = read_number(p, table, "rest_length_m", where, default=None, positive=True)
+        name = read_string(p, table, "name", where, default=where)
+        if refs is None or stiffness is None or name is None or (
+                "rest_length_m" in table and rest is None):
+            continue
+        make(refs, float(stiffness), rest, name)
 
 
 def _read_lines(p, value, ctx, spec: ElementSpec):
-    tables = read_table(p, value, "line", array=True)
-    if tables is None:
-        return
-    for index, table in enumerate(tables):
-        where = key_path("line", index)
-        check_keys(p, table, where, ("nodes", "stiffness_N_per_m", "rest_length_m", "name"),
-                      {"nodes": "two node names", "stiffness_N_per_m": "a positive number"})
-        refs = _nodes(p, table, where, ctx, spec, 2, "two node names [a, b]")
-        stiffness = read_number(p, table, "stiffness_N_per_m", where, positive=True)
-        rest = _rest_length(p, table, where)
-        name = read_string(p, table, "name", where, default=where)
-        if refs is None or stiffness is None or name is None or (
-                "rest_length_m" in table and rest is None):
-            continue
-        spec.lines.append(Line(refs[0], refs[1], float(stiffness), rest, name=name))
+    _read_ropes(p, value, ctx, spec, "line", "two node names [a, b]",
+                lambda refs, k, rest, name: spec.lines.append(
+                    Line(refs[0], refs[1], k, rest, name=name)))
 
 
 def _read_pulleys(p, value, ctx, spec: ElementSpec):
-    tables = read_table(p, value, "pulley", array=True)
-    if tables is None:
-        return
-    for index, table in enumerate(tables):
-        where = key_path("pulley", index)
-        check_keys(p, table, where, ("nodes", "stiffness_N_per_m", "rest_length_m", "name"),
-                      {"nodes": "three node names [end, pulley, end]",
-                       "stiffness_N_per_m": "a positive number"})
-        refs = _nodes(p, table, where, ctx, spec, 3, "three node names [end, pulley, end]")
-        stiffness = read_number(p, table, "stiffness_N_per_m", where, positive=True)
-        rest = _rest_length(p, table, where)
-        name = read_string(p, table, "name", where, default=where)
-        if refs is None or stiffness is None or name is None or (
-                "rest_length_m" in table and rest is None):
-            continue
-        spec.pulleys.append(Pulley(refs[0], refs[1], refs[2], float(stiffness), rest,
-                                   name=name))
+    _read_ropes(p, value, ctx, spec, "pulley", "three node names [end, pulley, end]",
+                lambda refs, k, rest, name: spec.pulleys.append(
+                    Pulley(refs[0], refs[1], refs[2], k, rest, name=name)))
 
 
 def _reference_position(ref: str, ctx, spec: ElementSpec):
@@ -216,9 +207,9 @@ def _read_canopies(p, value, ctx, spec: ElementSpec):
     for index, table in enumerate(tables):
         where = key_path("canopy", index)
         check_keys(p, table, where, ("name", "grid", "stiffness_N_per_m", "diagonals",
-                                        "rest_length_factor"),
-                      {"name": "a canopy name", "grid": "rows of node names",
-                       "stiffness_N_per_m": "a positive number"})
+                                     "rest_length_factor"),
+                   {"name": "a canopy name", "grid": "rows of node names",
+                    "stiffness_N_per_m": "a positive number"})
         name = read_string(p, table, "name", where)
         if name is not None and name in names:
             p.add(key_path(where, "name"), f"expected a unique canopy name, found {name!r} twice")
@@ -280,7 +271,7 @@ def _read_point_masses(p, value, ctx, spec: ElementSpec):
     for index, table in enumerate(tables):
         where = key_path("point_mass", index)
         check_keys(p, table, where, ("node", "mass_kg"),
-                      {"node": "a node name", "mass_kg": "a positive mass [kg]"})
+                   {"node": "a node name", "mass_kg": "a positive mass [kg]"})
         ref = _node(p, table["node"], key_path(where, "node"), ctx, spec) \
             if "node" in table else None
         mass = read_number(p, table, "mass_kg", where, positive=True)
