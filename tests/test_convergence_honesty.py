@@ -41,7 +41,7 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from fitting._rig import CantileverRig, TubeModel
+from fitting import CantileverRig, TubeModel
 
 MEMBERS = 520  # per law family; 4 families: 2,080 solves
 RELATIVE_TOLERANCE = 1e-8

@@ -231,12 +231,14 @@ def test_a_converged_solve_at_the_wrinkling_onset_meets_its_tolerance():
     Newton step (with the specimen traced, as in a fit or a sweep). The old stopping rule's
     scale ``max(|grad E|, |J^T lambda|, |H z|)`` exploded there with the law's computed
     second derivative (wrong by up to 5e6 EI within rounding of the onset; fixed in
-    ``jaxtube/_laws.py``) and reported convergence after one step with the geometric
+    ``jaxtube/_laws/tension_field.py``) and reported convergence after one step with the geometric
     nonlinearity lost (7e-5 relative in the root moment). The stopping rule's scale is now
-    the largest generalised force of a term (``jaxtube/_solver.py``)."""
+    the largest generalised force of a term (``jaxtube/_solver/newton_kkt.py``)."""
     import equinox as eqx
 
-    from fitting._rig import DOWN, CantileverRig, TubeModel
+    from fitting import CantileverRig, TubeModel
+
+    down = np.array([0.0, 0.0, -1.0])
 
     pressure, radius = 1e4, 0.03
     rig = CantileverRig(segments=12)
@@ -250,7 +252,7 @@ def test_a_converged_solve_at_the_wrinkling_onset_meets_its_tolerance():
         params = rig.specimen_parameters(TubeModel(jt.TensionFieldLaw(150e3)), pressure,
                                          radius, 1.0)
         moment = jnp.pi * pressure * radius**3 / 2
-        force = params.node_force.at[tip].set(jnp.asarray(DOWN) * moment)
+        force = params.node_force.at[tip].set(jnp.asarray(down) * moment)
         return jt.equilibrium(structure, eqx.tree_at(lambda p: p.node_force, params, force))
 
     solution = solve(jnp.asarray(pressure), jnp.asarray(radius))

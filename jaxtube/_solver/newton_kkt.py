@@ -58,6 +58,14 @@ from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
 
+#: Smallest regularisation of every KKT solve, relative to the Hessian's largest diagonal
+#: entry (``mu`` on the Hessian, and ``delta`` on the multipliers in the implicit tangent's
+#: matrix). It changes a step by about this relative amount, far below the tolerances, and
+#: keeps an exactly singular matrix (a point node whose lines are all slack, a redundant
+#: constraint) from a zero pivot: KLU stops the whole program on one (dense LU returns
+#: infinities, which the curvature test then rejects).
+MU_FLOOR = 1e-14
+
 
 class NewtonKKT(eqx.Module):
     """Settings of the Newton solver. Tolerances are floats; counts are static.
@@ -113,6 +121,25 @@ def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     if choose_route(solver.linear_solver, given, n + m) == "sparse":
         return SparseKKT(blocks, n, m)
     return DenseKKT(n, m)
+
+
+def _unless(skip, step, skipped):
+    """``skipped`` if ``skip`` else ``step(None)``, written as a while-loop of at most one
+    pass rather than ``lax.cond``.
+
+    Under ``vmap`` a ``lax.cond`` with a batched predicate becomes a select that broadcasts
+    every operand of both branches, constants included; klujax's solve refuses a batched
+    sparsity pattern (``Ai cannot be vectorized``). A while-loop keeps its constants
+    unbatched, skips the step when not batched (the converged last pass of a solve needs no
+    Hessian), and under ``vmap`` runs it once for the members that need it, masked.
+    """
+
+    def body(carry):
+        _, _ = carry
+        return jnp.ones((), bool), step(None)
+
+    return jax.lax.while_loop(lambda carry: ~carry[0] & ~skip, body,
+                              (jnp.zeros((), bool), skipped))[1]
 
 
 def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
@@ -196,7 +223,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                 sol, ok = solve_with(mu)
                 return sol, ok, tries + 1, mu
 
-            sol0, ok0 = solve_with(jnp.zeros((), dtype=z.dtype))
+            sol0, ok0 = solve_with(MU_FLOOR * h_scale)
             sol, _, _, _ = jax.lax.while_loop(
                 reg_cond, reg_body,
                 (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
@@ -231,8 +258,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         def stay(_):
             return z, lam, rho, jnp.ones((), bool), jnp.ones((), bool)
 
-        z_try, lam_try, rho_new, accepted, finite_step = jax.lax.cond(
-            converged | ~finite_residual, stay, newton_step, None)
+        z_try, lam_try, rho_new, accepted, finite_step = _unless(
+            converged | ~finite_residual, newton_step, stay(None))
         finite = finite_residual & finite_step
         stop = converged | ~finite | ~accepted
         code = jnp.where(converged, 0, jnp.where(~finite, 3, jnp.where(~accepted, 2, 1)))
@@ -253,8 +280,11 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     def kkt_at_solution():
         """KKT matrix (route's form) at the returned point, for the implicit tangent."""
         jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
-        zero = jnp.zeros((), dtype)
-        return route.kkt(lagrangian_hessian(z, lam), jacobian, zero, zero)
+        hessian = lagrangian_hessian(z, lam)
+        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
+        mu = MU_FLOOR * h_scale
+        return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
 
     return z, lam, (code == 0, steps, code, res_g, res_c), (kkt_at_solution, route)
 
