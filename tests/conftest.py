@@ -17,6 +17,9 @@ _SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false"
 if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + _SINGLE_THREAD).strip()
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# The command line turns on a persistent compilation cache in the user's cache directory; in
+# the tests the cache below serves instead (tests/test_compilation_cache.py unsets this).
+os.environ.setdefault("JAXTUBE_NO_COMPILATION_CACHE", "1")
 
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402

@@ -39,3 +39,20 @@ def test_opt_out_leaves_no_cache(tmp_path):
     # Only jaxtube's folder is checked: other libraries (matplotlib's font cache, imported
     # with jaxtube's figures) may use the same XDG cache home.
     assert not (tmp_path / "cache" / "jaxtube").exists()
+
+
+
+def test_the_command_line_turns_the_cache_on_unless_told_not_to(monkeypatch, tmp_path):
+    """``jaxtube`` enables the cache before it runs a subcommand, and ``--no-compilation-cache``
+    skips it (here on a spec that does not exist: exit 2, nothing compiled)."""
+    import jaxtube as jt
+    from fitting._cli import main
+
+    calls = []
+    monkeypatch.setattr(jt, "enable_compilation_cache", lambda *a, **k: calls.append(a))
+    missing = str(tmp_path / "missing.toml")
+    assert main(["simulate", missing, "--out", str(tmp_path / "a")]) == 2
+    assert len(calls) == 1
+    assert main(["--no-compilation-cache", "simulate", missing,
+                 "--out", str(tmp_path / "b")]) == 2
+    assert len(calls) == 1

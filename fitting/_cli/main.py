@@ -8,6 +8,11 @@
 - ``jaxtube score-shape --markers M.csv --positions P.csv --tubes T.csv --out DIR``: a
   solved shape against measured markers (:mod:`.score_shape`).
 
+Compiled programs are kept between runs in a persistent cache under the user's cache
+directory (``jaxtube.enable_compilation_cache``: ``$XDG_CACHE_HOME/jaxtube/xla``), so a second
+run of the same command does not compile again; ``--no-compilation-cache`` or
+``JAXTUBE_NO_COMPILATION_CACHE=1`` turns it off.
+
 Exit codes (every subcommand): 0 success; 1 the run finished but some solves did not
 converge (outputs written, failures marked); 2 bad input or bad arguments (nothing written).
 """
@@ -35,6 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxtube", description="Differentiable simulator of inflatable tube structures.")
     parser.add_argument("--version", action="version", version=f"jaxtube {jt.__version__}")
+    parser.add_argument(
+        "--no-compilation-cache", action="store_true",
+        help="do not keep compiled programs in the user's cache directory between runs "
+             "(default: kept under $XDG_CACHE_HOME/jaxtube/xla; also "
+             "JAXTUBE_NO_COMPILATION_CACHE=1)")
     subparsers = parser.add_subparsers(title="subcommands", metavar="COMMAND")
     for add in SUBCOMMANDS:
         add(subparsers)
@@ -48,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     if not hasattr(args, "run"):
         parser.print_help(sys.stderr)
         return 2
+    if not args.no_compilation_cache:
+        jt.enable_compilation_cache()
     return args.run(args)
 
 
