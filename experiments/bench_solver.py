@@ -5,7 +5,10 @@ the tension-field law with E t = 150 kN/m; Breukels & Ockels 2008):
 
 - (a) one static solve, ``jt.equilibrium``, tip force 60 % of the wrinkling load;
 - (b) a 50-step displacement-controlled curve through collapse, ``jt.solve_path``;
-- (c) ``jax.vmap`` of such curves over a pressure x radius grid (0.1-0.5 bar x 50-100 mm);
+- (c) ``jax.vmap`` of such curves over a pressure x radius grid (0.1-0.5 bar x 50-100 mm),
+  against a Python loop of the single curve over the same members in the same run, for the
+  default solver and ``NewtonKKT(globalisation="fixed_trials")`` with the dense and the sparse
+  KKT route (``batch_case.py``); ``--batch-only`` runs (c) alone;
 - a straightforward ``scipy.optimize.minimize(method="SLSQP")`` implementation of the same
   energy in numpy (finite-difference gradients, displacement control as an equality
   constraint), timed in the same process, as the baseline of (b).
@@ -16,6 +19,8 @@ This is a script, not a test. Run from the repository root::
 
     python experiments/bench_solver.py            # full mode, a few minutes
     python experiments/bench_solver.py --quick    # fewer repeats, tiny batch (CI)
+    python experiments/bench_solver.py --batch-only --batch 32 \
+        --out experiments/results/bench_solver_batch.txt
 
 The output is printed and written to ``experiments/results/bench_solver.txt`` (``--out``).
 Timings are medians over repeats of warm (compiled) calls; compile times are measured
