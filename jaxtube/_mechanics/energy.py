@@ -203,24 +203,26 @@ def energy_and_constraints(structure, geometry, state, params, control):
 
 
 def energy_terms_and_constraints(structure, geometry, state, params, control):
-    """Energy terms ``[5]`` [J] (joint strain energy, shear energy, the tubes' load
-    potential, line and pulley strain energy, the point nodes' load potential) and the
-    constraints [m], from one evaluation of the kinematics. The solver's stopping rule takes
-    its force scale from each term's gradient (internal spring forces, applied loads) and
-    from the reactions, never from the tangent stiffness."""
+    """Energy terms ``[k]`` [J] and the constraints [m], from one evaluation of the
+    kinematics. The terms are those the structure has, in this order: joint strain energy,
+    shear energy (with shear), the tubes' load potential (with tubes), line and pulley
+    strain energy, the point nodes' load potential (with point elements). The solver's
+    stopping rule takes its force scale from each term's gradient (internal spring forces,
+    applied loads) and from the reactions, never from the tangent stiffness; a term that is
+    identically zero for the structure is left out (the solver would otherwise pull a zero
+    cotangent back through the whole kinematics in every linearisation)."""
     config = tube_configuration(structure, geometry, state)
-    zero = jnp.zeros(())
-    strain = shear = load = line = point_load = zero
+    terms = []
     if config is not None:
         joints = spring_joints(structure, geometry, state)
-        strain = strain_energy(joints, params)
-        shear = shear_energy(structure, geometry, params, state)
-        load = load_potential(structure, geometry, config, params, state)
+        terms.append(strain_energy(joints, params))
+        if "segment_shear" in state:
+            terms.append(shear_energy(structure, geometry, params, state))
+        terms.append(load_potential(structure, geometry, config, params, state))
     if structure.elements.active:
         points = state["point_position"]
-        line = element_strain_energy(structure.elements, params.elements, points)
-        point_load = element_load_potential(structure.elements, params.elements,
-                                            params.gravity, points)
-    terms = jnp.stack([jnp.asarray(t, dtype=float) for t in
-                       (strain, shear, load, line, point_load)])
+        terms.append(element_strain_energy(structure.elements, params.elements, points))
+        terms.append(element_load_potential(structure.elements, params.elements,
+                                            params.gravity, points))
+    terms = jnp.stack([jnp.asarray(t, dtype=float) for t in terms]) if terms else jnp.zeros(1)
     return terms, constraints(structure, config, state, params, control)

@@ -53,6 +53,7 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
+from .fixed_trials import Linearisation, fixed_trials_loop
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks
 from .results import RESULTS, result_messages
 
@@ -65,6 +66,9 @@ RESULT_MESSAGES = result_messages(RESULTS)
 #: constraint) from a zero pivot: KLU stops the whole program on one (dense LU returns
 #: infinities, which the curvature test then rejects).
 MU_FLOOR = 1e-14
+
+#: ``NewtonKKT.globalisation`` settings.
+GLOBALISATIONS = ("backtracking", "fixed_trials")
 
 
 class NewtonKKT(eqx.Module):
@@ -81,6 +85,13 @@ class NewtonKKT(eqx.Module):
         linear_solver: ``"auto"`` (sparse KLU on the CPU for a model giving Hessian blocks
             and a KKT system of at least ``SPARSE_CROSSOVER`` unknowns, else dense),
             ``"dense"`` or ``"sparse"`` (``jaxtube._solver.kkt_linear``).
+        globalisation: ``"backtracking"`` (regularisation retries and a backtracking line
+            search, nested loops inside each Newton step) or ``"fixed_trials"`` (one loop:
+            one KKT solve per pass, ``line_search_trials`` step lengths evaluated together,
+            retries carried to the next pass; the same iterates, for ``vmap`` batches:
+            ``jaxtube._solver.fixed_trials``).
+        line_search_trials: halvings of the step evaluated together per pass
+            (``"fixed_trials"`` only).
     """
 
     rtol: float = 1e-10
@@ -90,6 +101,16 @@ class NewtonKKT(eqx.Module):
     max_backtracks: int = eqx.field(static=True, default=30)
     max_regularisations: int = eqx.field(static=True, default=12)
     linear_solver: str = eqx.field(static=True, default="auto")
+    globalisation: str = eqx.field(static=True, default="backtracking")
+    line_search_trials: int = eqx.field(static=True, default=4)
+
+    def __check_init__(self):
+        if self.globalisation not in GLOBALISATIONS:
+            raise ValueError(f"NewtonKKT.globalisation must be one of {GLOBALISATIONS}, got "
+                             f"{self.globalisation!r}.")
+        if self.line_search_trials < 1:
+            raise ValueError("NewtonKKT.line_search_trials must be at least 1, got "
+                             f"{self.line_search_trials}.")
 
 
 class EquilibriumResult(eqx.Module):
@@ -170,6 +191,30 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         if hessian_fn is None:
             return route.hessian(jax.hessian(lambda zz: lagrangian_and_parts(zz, lam)[0])(z))
         return route.hessian(hessian_fn(z, lam, args))
+
+    def kkt_at_solution(z, lam):
+        """KKT matrix (route's form) at the returned point, for the implicit tangent."""
+        jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
+        hessian = lagrangian_hessian(z, lam)
+        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
+        mu = MU_FLOOR * h_scale
+        return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
+
+    if solver.globalisation == "fixed_trials":
+        def rows(z):
+            (parts, c), pullback = jax.vjp(lambda zz: objective(zz, args), z)
+            (r,) = jax.vmap(pullback)((unit_parts, unit_constraints))
+            return jnp.sum(parts), c, r[:k], r[k:]
+
+        problem = Linearisation(
+            rows=rows, hessian=lagrangian_hessian,
+            merit_parts=lambda z: lagrangian_and_parts(z, jnp.zeros_like(lam0))[1],
+            route=route, unless=_unless)
+        z, lam, steps, code, res_g, res_c = fixed_trials_loop(problem, solver, z0, lam0,
+                                                              MU_FLOOR)
+        return (z, lam, (code == 0, steps, code, res_g, res_c),
+                (lambda: kkt_at_solution(z, lam), route))
 
     def body(carry):
         z, lam, rho, step, _, _, _, _ = carry
@@ -276,17 +321,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
             jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype))
     z, lam, _, steps, _, code, res_g, res_c = jax.lax.while_loop(cond, body, init)
-
-    def kkt_at_solution():
-        """KKT matrix (route's form) at the returned point, for the implicit tangent."""
-        jacobian = jax.jacrev(lambda zz: objective(zz, args)[1])(z)
-        hessian = lagrangian_hessian(z, lam)
-        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
-        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
-        mu = MU_FLOOR * h_scale
-        return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
-
-    return z, lam, (code == 0, steps, code, res_g, res_c), (kkt_at_solution, route)
+    return (z, lam, (code == 0, steps, code, res_g, res_c),
+            (lambda: kkt_at_solution(z, lam), route))
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
