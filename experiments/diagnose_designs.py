@@ -19,6 +19,19 @@ import time
 from pathlib import Path
 
 import fitting as ft
+from fitting._calibrate import problem as _problem
+
+_EVALUATIONS = [0]
+_original = _problem._residuals_and_jacobian
+
+
+def _counted(*args, **kwargs):
+    """The fit's residual-and-Jacobian function, counted (a load-independent cost)."""
+    _EVALUATIONS[0] += 1
+    return _original(*args, **kwargs)
+
+
+_problem._residuals_and_jacobian = _counted
 
 ROOT = Path(__file__).resolve().parents[1]
 EFFECTS = ROOT / "tests" / "data" / "effects"
@@ -54,25 +67,26 @@ def main() -> None:
     lines = [f"diagnose_designs.py, {time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} CPUs, "
              f"load average {os.getloadavg()[0]:.2f} at start",
              f"{'dataset':<22}{'hidden':<18}{'verdict':<34}{'base/floor':>11}"
-             f"{'final/floor':>12}{'noise/floor':>12}{'seconds':>9}  result"]
+             f"{'final/floor':>12}{'noise/floor':>12}{'seconds':>9}{'evals':>7}  result"]
     print(lines[0], flush=True)
     for name in args.only:
         data = ft.load_measurements(EFFECTS / f"{name}.csv")
-        t0 = time.perf_counter()
+        t0, _EVALUATIONS[0] = time.perf_counter(), 0
         diagnosis = ft.diagnose(data, options=ft.DiagnoseOptions(progress=False))
         seconds = time.perf_counter() - t0
         floor = DESIGNS[name]["noise_floor_N"]
         ok, why = judge(name, diagnosis)
         line = (f"{name:<22}{HIDDEN[name] or '-':<18}{', '.join(diagnosis.verdict) or '-':<34}"
                 f"{diagnosis.baseline.rmse / floor:>11.2f}{diagnosis.final.rmse / floor:>12.2f}"
-                f"{diagnosis.noise / floor:>12.2f}{seconds:>9.1f}  "
+                f"{diagnosis.noise / floor:>12.2f}{seconds:>9.1f}{_EVALUATIONS[0]:>7}  "
                 + ("pass" if ok else "FAIL: " + why))
         lines.append(line)
         print(line, flush=True)
         (RESULTS / "diagnose_designs" / f"{name}.txt").write_text(diagnosis.report() + "\n")
     lines.append("base/final/noise over floor: baseline RMSE, final RMSE and the model-free "
                  "noise estimate over the generating noise floor (designs.json); seconds "
-                 "include compilation for the first dataset of each shape")
+                 "include compilation for the first dataset of each shape; evals: residual-and-"
+                 "Jacobian evaluations of the whole diagnosis (every fit, every start)")
     lines.append(f"load average {os.getloadavg()[0]:.2f} at the end")
     (RESULTS / "diagnose_designs.txt").write_text("\n".join(lines) + "\n")
 
