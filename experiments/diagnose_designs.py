@@ -62,6 +62,8 @@ def judge(name: str, diagnosis) -> tuple[bool, str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="*", default=list(HIDDEN))
+    parser.add_argument("--results", default="diagnose_designs.txt",
+                        help="file name under experiments/results")
     args = parser.parse_args()
     (RESULTS / "diagnose_designs").mkdir(parents=True, exist_ok=True)
     lines = [f"diagnose_designs.py, {time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} CPUs, "
@@ -88,7 +90,7 @@ def main() -> None:
                  "include compilation for the first dataset of each shape; evals: residual-and-"
                  "Jacobian evaluations of the whole diagnosis (every fit, every start)")
     lines.append(f"load average {os.getloadavg()[0]:.2f} at the end")
-    (RESULTS / "diagnose_designs.txt").write_text("\n".join(lines) + "\n")
+    (RESULTS / args.results).write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -44,7 +44,9 @@ decision, and the report says so.
 **Significance** (all must hold): the likelihood-ratio test rejects at ``alpha`` (default
 1 %) after a Bonferroni correction over the candidates still in play; the refit lowers the
 BIC by more than ``bic_threshold`` (default 10, "very strong" on the scale of Kass & Raftery
-1995); the cross-validated error falls (when valid); and the fitted size is within the
+1995); the cross-validated error does not rise beyond its scatter (when valid: the paired
+mean of the points' held-out squared errors, against the current model's, is not more than
+``CV_RISE_Z`` standard errors above zero); and the fitted size is within the
 effect's plausible range (:class:`fitting.EffectParameter` ``plausible``): an effect that
 explains the data only at an implausible size is reported as such and is not the verdict.
 An extra parameter always lowers the training error; the BIC and the cross-validation keep
@@ -82,7 +84,7 @@ from .score import (
     score_test,
 )
 from .selection import bound_count, implausible_words, refit_candidate
-from .validation import blocked_cross_validation
+from .validation import CV_RISE_Z, blocked_cross_validation
 
 
 def default_candidates(scaling: PivotScaling, user_effects: Sequence[type[Effect]] = ()):
@@ -212,10 +214,12 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
             failed.append("BIC")
             reasons.append(f"BIC drop {-delta_bic:.3g} <= {options.bic_threshold:g}")
         cv_used = cv.valid and cv_now.valid
-        if cv_used and not cv.rmse_N < cv_now.rmse_N:
+        rise = cv.rise_z(cv_now)
+        if cv_used and rise > CV_RISE_Z:
             failed.append("cross-validation")
-            reasons.append(f"cross-validated error does not fall ({cv.rmse_N:.4g} N >= "
-                           f"{cv_now.rmse_N:.4g} N)")
+            reasons.append(f"cross-validated error rises beyond its scatter ({cv.rmse_N:.4g} "
+                           f"N against {cv_now.rmse_N:.4g} N, paired z = {rise:.2g} > "
+                           f"{CV_RISE_Z:g})")
         implausible = implausible_words(effect, names, estimates)
         if implausible:
             failed.append("plausible size")

@@ -25,19 +25,37 @@ from .._calibrate.result import FitResult
 #: well-posed design.
 CV_FOLDS = 4
 CV_LEVERAGE_LIMIT = 0.9
+#: The cross-validation guards against overfitting: it vetoes a candidate when the
+#: candidate's held-out squared errors exceed the current model's by more than this many
+#: standard errors of their paired mean difference (one-sided, about 2.3 %). A rise within
+#: its own scatter is not evidence of overfitting (the likelihood ratio decides).
+CV_RISE_Z = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
 class CrossValidation:
     """Blocked cross-validated RMSE [N] of a fit (``rmse_N``; nan when not ``valid``), the
-    folds' ``largest_leverage``, the number of ``folds``, and in ``words`` why it is not
-    valid (empty when it is)."""
+    folds' ``largest_leverage``, the number of ``folds``, in ``words`` why it is not valid
+    (empty when it is), and ``held_out``: every point's held-out residual in noise units
+    ``[C * P]`` (0 for padding)."""
 
     rmse_N: float
     valid: bool
     largest_leverage: float
     folds: int
     words: str
+    held_out: np.ndarray = dataclasses.field(default=None, repr=False, compare=False)
+
+    def rise_z(self, other: CrossValidation) -> float:
+        """How many standard errors this fit's held-out squared errors exceed ``other``'s
+        (same data, same folds): the paired mean difference over the points over its
+        standard error (positive: this one predicts the held-out points worse)."""
+        if not (self.valid and other.valid):
+            return math.nan
+        d = self.held_out**2 - other.held_out**2
+        d = d[(self.held_out != 0) | (other.held_out != 0)]
+        se = float(np.std(d, ddof=1)) / math.sqrt(d.size) if d.size > 1 else 0.0
+        return float(np.mean(d)) / se if se > 0 else 0.0
 
 
 def fold_of_points(problem, folds: int = CV_FOLDS) -> np.ndarray:
@@ -78,6 +96,7 @@ def blocked_cross_validation(result: FitResult, folds: int = CV_FOLDS) -> CrossV
     u, s, _ = np.linalg.svd(jac, full_matrices=False)
     u = u[:, s > 1e-10 * max(float(s[0]) if s.size else 0.0, 1e-300)]
     total, largest = 0.0, 0.0
+    held_out = np.zeros(n_data)
     for k in range(folds):
         rows = fold == k
         if not rows.any():
@@ -89,6 +108,7 @@ def blocked_cross_validation(result: FitResult, folds: int = CV_FOLDS) -> CrossV
         if leverage < 1.0 - 1e-9:
             held = np.linalg.solve(np.eye(hat.shape[0]) - hat, r[rows])
             total += float(held @ held)
+            held_out[rows[:n_data]] = held
     if largest >= CV_LEVERAGE_LIMIT:
         return CrossValidation(math.nan, False, largest, folds,
                                f"a fold of {folds} blocks within the curves has leverage "
@@ -97,4 +117,4 @@ def blocked_cross_validation(result: FitResult, folds: int = CV_FOLDS) -> CrossV
                                "so the fold's refit is not determined by the rest")
     weight = problem.batch.weight.reshape(-1)
     return CrossValidation(float(problem.noise * math.sqrt(total / np.sum(weight))), True,
-                           largest, folds, "")
+                           largest, folds, "", held_out)
