@@ -10,7 +10,8 @@ as found (nothing is tuned to it). Results go to ``experiments/results/bench_v3_
 when ``--write`` is given.
 
     python experiments/bench_v3_hang.py [--pressure-bar 0.15] [--bending-scale S]
-        [--steps K] [--repeats 5] [--write]
+        [--steps K] [--smoothing W1 W2 ...] [--linear-solver auto|dense|sparse]
+        [--repeats 5] [--write]
 """
 
 from __future__ import annotations
@@ -41,6 +42,12 @@ def main() -> None:
                         help="Newton iteration cap (NewtonKKT.max_steps)")
     parser.add_argument("--restarts", type=int, default=8,
                         help="runs of max_steps Newton steps after the first, until converged")
+    parser.add_argument("--linear-solver", default="auto", choices=("auto", "dense", "sparse"),
+                        help="KKT route (NewtonKKT.linear_solver)")
+    parser.add_argument("--smoothing", type=float, nargs="+", default=None,
+                        help="continuation: the lines' blend width per stage, all at full "
+                             "gravity (jaxtube.hang_kite's tension_smoothing); the last one is "
+                             "the model's")
     parser.add_argument("--write", action="store_true")
     parser.add_argument("--figure", type=Path, default=None,
                         help="write the hung kite's 3-D figure (PNG) here")
@@ -50,8 +57,13 @@ def main() -> None:
     imported = jt.import_kite_fem(MODEL, pressure_bar=args.pressure_bar,
                                   bending_scale=args.bending_scale)
     imported_at = time.perf_counter()
-    solver = jt.NewtonKKT() if args.max_steps is None else jt.NewtonKKT(max_steps=args.max_steps)
-    hang = jax.jit(jt.hang_program(imported.structure, args.steps, solver))
+    settings = {} if args.max_steps is None else {"max_steps": args.max_steps}
+    solver = jt.NewtonKKT(linear_solver=args.linear_solver, **settings)
+    schedule = {}
+    if args.smoothing:
+        schedule = {"load_factors": [1.0] * len(args.smoothing),
+                    "tension_smoothing": args.smoothing}
+    hang = jax.jit(jt.hang_program(imported.structure, args.steps, solver, **schedule))
     start = jt.undeformed_start(imported.structure, imported.params)
     compiled = hang.lower(imported.params, start).compile()
     compiled_at = time.perf_counter()
@@ -61,7 +73,8 @@ def main() -> None:
     for _ in range(args.repeats):
         t0 = time.perf_counter()
         solution, runs = jt.hang_until_converged(
-            imported.structure, imported.params, restarts=args.restarts, compiled=compiled)
+            imported.structure, imported.params, restarts=args.restarts, compiled=compiled,
+            solver=solver)
         jax.block_until_ready(solution)
         times.append(time.perf_counter() - t0)
     converged = np.asarray(solution.converged)
@@ -87,7 +100,9 @@ def main() -> None:
         f"{balance['total_mass_kg']:.4f} kg",
         f"import {imported_at - started:.2f} s, compile {compiled_at - imported_at:.1f} s",
         f"warm hang (all runs): median {statistics.median(times):.3f} s over {args.repeats} "
-        f"(min {min(times):.3f}, max {max(times):.3f}); {args.steps} gravity step(s)",
+        f"(min {min(times):.3f}, max {max(times):.3f}); "
+        + (f"{args.steps} gravity step(s)" if not args.smoothing else
+           f"full gravity, blend widths {args.smoothing} (continuation)"),
         f"runs of at most {solver.max_steps} Newton steps: {runs}; last run: converged per "
         f"step {converged.tolist()}, Newton iterations {iterations.tolist()}, "
         f"result {[jt.RESULT_MESSAGES.get(int(c), '?') for c in np.asarray(solution.result)]}; "
@@ -102,7 +117,7 @@ def main() -> None:
         f"node {int(distance.argmax())}; undeformed vs kite_fem: RMS "
         f"{1e3 * np.sqrt(np.mean(undeformed**2)):.1f} mm, max {1e3 * undeformed.max():.1f} mm",
         f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; jax {jax.__version__}; "
-        "dense KKT path",
+        f"{args.linear_solver} KKT route",
     ]
     if args.figure is not None:
 

@@ -6,7 +6,7 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
 and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`), and shapes
 against measured markers (:func:`load_markers`, :class:`TubeSurfaces`, :func:`register`,
-:func:`marker_rms`, :func:`score_shape`).
+:func:`marker_rms`, :func:`score_shape`, :func:`fit_to_markers`).
 The independent continuum reference solver is :mod:`fitting.continuum`; the command line is
 :mod:`fitting._cli` (``jaxtube``).
 """
@@ -68,6 +68,7 @@ from ._shape.files import (
     load_triangles,
     load_tubes,
 )
+from ._shape.fit import MarkerFit, fit_to_markers
 from ._shape.markers import MarkerSet, load_markers, spanwise_family
 from ._shape.registration import (
     MarkerDistances,
@@ -101,7 +102,7 @@ __all__ = [
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
-    "score_shape", "spanwise_family",
+    "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

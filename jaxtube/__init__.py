@@ -40,6 +40,8 @@ from ._io.kite_fem import hang_kite as hang_kite
 from ._io.kite_fem import hang_program as hang_program
 from ._io.kite_fem import hang_until_converged as hang_until_converged
 from ._io.kite_fem import import_kite_fem as import_kite_fem
+from ._io.kite_fem import restart_from as restart_from
+from ._io.kite_fem import scale_gravity_and_loads as scale_gravity_and_loads
 from ._io.kite_fem import undeformed_start as undeformed_start
 from ._io.kite_fem import write_positions_csv as write_positions_csv
 from ._io.kite_fem_reader import KiteFemFormatError as KiteFemFormatError

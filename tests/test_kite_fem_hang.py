@@ -128,3 +128,10 @@ def test_mini_kite_gradients(mini):
         scale = np.abs(central).max()
         assert scale > 0  # the watched nodes do move
         np.testing.assert_allclose(final(derivative), central, atol=1e-5 * scale)
+
+
+def test_hang_schedule_needs_one_width_per_stage(mini):
+    imported, _, _ = mini
+    with pytest.raises(ValueError, match="expected 2 widths"):
+        jt.hang_kite(imported.structure, imported.params, load_factors=[0.5, 1.0],
+                     tension_smoothing=[1e-2, 1e-3, 1e-4])

@@ -269,34 +269,56 @@ def scale_gravity_and_loads(params: StructureParameters, factor) -> StructurePar
 
 
 def hang_kite(structure: Structure, params: StructureParameters, steps: int = 1,
-              solver: NewtonKKT = NewtonKKT(), start: HangStart | None = None) -> Solution:
+              solver: NewtonKKT = NewtonKKT(), start: HangStart | None = None,
+              load_factors=None, tension_smoothing=None) -> Solution:
     """Hang a structure: gravity and point loads are stepped up to full in ``steps`` equal
     increments (``lax.scan`` over one traced solve, each step warm-started from the
     previous), from ``start`` (default: the undeformed shape, :func:`undeformed_start`).
     Returns the :class:`Solution` of every step (leading axis ``[steps]``; ``load_factor``
     is the step's fraction of gravity and loads), each with its own convergence report.
     Traceable: ``jax.jit(partial(hang_kite, structure))``; see :func:`hang_until_converged`.
+
+    A continuation instead of equal increments: ``load_factors`` ``[K]`` (fractions of
+    gravity and loads, one per step; ``steps`` is then ignored) and ``tension_smoothing``
+    ``[K]`` (the lines' blend width per step, ``params.elements.tension_smoothing`` by
+    default). Wide blends first let Newton cross the slack-taut changes of many lines in
+    few steps; the last step, at the model's own width, is the equilibrium reported (every
+    step is a converged equilibrium of its own parameters, or says it is not).
     """
-    factors = jnp.arange(1, steps + 1, dtype=float) / steps
+    if load_factors is None:
+        factors = jnp.arange(1, steps + 1, dtype=float) / steps
+    else:
+        factors = jnp.asarray(load_factors, dtype=float).reshape(-1)
+    if tension_smoothing is None:
+        widths = jnp.broadcast_to(params.elements.tension_smoothing, factors.shape)
+    else:
+        widths = jnp.asarray(tension_smoothing, dtype=float).reshape(-1)
+        if widths.shape != factors.shape:
+            raise ValueError(f"tension_smoothing: expected {factors.shape[0]} widths (one per "
+                             f"step), got {widths.shape[0]}")
     if start is None:
         start = undeformed_start(structure, params)
 
-    def step(carry, factor):
-        sol = equilibrium(structure, scale_gravity_and_loads(params, factor), initial=carry,
-                          solver=solver)
+    def step(carry, factor_and_width):
+        factor, width = factor_and_width
+        stepped = eqx.tree_at(lambda p: p.elements.tension_smoothing,
+                              scale_gravity_and_loads(params, factor), width)
+        sol = equilibrium(structure, stepped, initial=carry, solver=solver)
         sol = eqx.tree_at(lambda s: s.load_factor, sol, factor)
         return HangStart(sol.state, sol.multipliers), sol
 
-    _, solutions = jax.lax.scan(step, start, factors)
+    _, solutions = jax.lax.scan(step, start, (factors, widths))
     return solutions
 
 
-def hang_program(structure: Structure, steps: int = 1, solver: NewtonKKT = NewtonKKT()):
+def hang_program(structure: Structure, steps: int = 1, solver: NewtonKKT = NewtonKKT(),
+                 load_factors=None, tension_smoothing=None):
     """``(params, start) -> Solution``: :func:`hang_kite` of ``structure`` with the start
     as a traced argument (jit it once; :func:`hang_until_converged` restarts it)."""
 
     def run(params, start):
-        return hang_kite(structure, params, steps, solver, start)
+        return hang_kite(structure, params, steps, solver, start, load_factors,
+                         tension_smoothing)
 
     return run
 

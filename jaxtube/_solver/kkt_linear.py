@@ -201,7 +201,20 @@ class SparseKKT:
         return jax.ops.segment_sum(contributions, self.slot, self.nnz)
 
     def solve(self, kkt, rhs):
-        return self.klujax.solve_with_symbol(self.Ai, self.Aj, kkt, rhs, self.symbol)
+        """``x`` with ``KKT x = rhs`` for KKT values ``[nnz]`` and ``rhs [n + m]``.
+
+        KLU's solve primitive is bound directly: klujax's ``solve_with_symbol`` sorts the
+        pattern inside the program (``lexsort`` of ``Ai, Aj``, then a gather of the values),
+        which XLA constant-folds at every call site (minutes of compilation for a whole
+        kite's pattern of 10^5-10^6 entries) and repeats at run time. The pattern here is
+        already in that order (``np.unique`` of row-major keys), so nothing is sorted. The
+        primitive's own batching and differentiation rules apply (``vmap``, ``jvp``).
+        """
+        klujax = self.klujax
+        x = klujax.solve_with_symbol_f64.bind(
+            jnp.asarray(self.Ai), jnp.asarray(self.Aj), jnp.reshape(kkt, (1, -1)),
+            jnp.reshape(rhs, (1, -1, 1)), jnp.asarray(self.symbol.raw, dtype=jnp.uint64))
+        return jnp.reshape(x, jnp.shape(rhs))
 
 
 def choose_route(linear_solver: str, blocks_given: bool, size: int) -> str:

@@ -70,6 +70,10 @@ MU_FLOOR = 1e-14
 #: ``NewtonKKT.globalisation`` settings.
 GLOBALISATIONS = ("backtracking", "fixed_trials")
 
+#: Largest fraction of the KKT matrix's entries that the sparse pattern may hold for
+#: ``linear_solver="auto"`` to keep the sparse route (above it: dense LAPACK).
+SPARSE_MAX_FILL = 0.25
+
 
 class NewtonKKT(eqx.Module):
     """Settings of the Newton solver. Tolerances are floats; counts are static.
@@ -140,7 +144,14 @@ def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     blocks = None if hessian_fn is None else hessian_fn(z0, lam0, args)
     given = blocks is not None and is_blocks(blocks)
     if choose_route(solver.linear_solver, given, n + m) == "sparse":
-        return SparseKKT(blocks, n, m)
+        sparse = SparseKKT(blocks, n, m)
+        # KLU has no dense kernels: a pattern that is mostly dense (the constraint Jacobian
+        # is stored dense, so many constraints on many unknowns) goes to LAPACK under
+        # "auto" (the V3 kite: 554,757 entries, about a third of its KKT matrix; dense 1.9 s per
+        # Newton step against sparse 2.5-3.2 s on the same loaded machine, README).
+        if solver.linear_solver == "auto" and sparse.nnz > SPARSE_MAX_FILL * (n + m) ** 2:
+            return DenseKKT(n, m)
+        return sparse
     return DenseKKT(n, m)
 
 

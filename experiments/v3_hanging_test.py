@@ -1,0 +1,526 @@
+"""The TU Delft V3 hanging test end to end: calibrate on case 1, predict cases 2-5 (issue 15).
+
+Data: ``experiments/data/v3_hanging`` ("Structural model data from awegroup/kite_fem (MIT,
+(c) 2025 Patrick Roeleveld); marker data from pimjhaanen/photogrammetry_thesis (MIT, (c) 2026
+PJ Haanen)"); its README describes the test, the cases and the peers' numbers.
+
+The model: kite_fem's ``initial.npz`` imported by :func:`jaxtube.import_kite_fem` (tubes with
+their diameters, canopy springs and bridle lines as tension-only lines, pulleys, lumped
+masses), hung from nodes 82 and 116 with gravity along +z, each case's loads.
+
+**What is fitted, and why.** One factor ``s`` on Breukels' 2011 bending law (the whole
+moment-curvature curve times ``s``, :class:`jaxtube.ScaledLaw`), the torsion law left as
+Breukels'. Reasons: (1) the 2011 law carries the pressure and radius dependence of the tube
+from Breukels' cantilever tests, so a factor fitted at 0.15 bar is a prediction at 0.25 bar
+(the held-out cases) without a second parameter that case 1 alone cannot determine; (2) case 1
+(gravity only) tests tube bending and nothing else the model has a free number for, and one
+gravity shape cannot separate a stiffness scale from a change of the curve's form (the spline
+law's ``A`` and ``B`` need at least two pressures); (3) the peers scaled the same law (Billow
+0.36, kite_fem about 0.23), so the factor compares directly. One parameter: a bounded Brent
+search on ``log s`` (every evaluation a converged hang and a fresh registration, so the
+objective is exactly the score), its minimum checked by the RMS on both sides, and with
+``--gradient-check`` the implicit derivative there (equilibrium tangent by the implicit
+function theorem times the marker RMS's gradient at the optimal registration).
+
+Subcommands::
+
+    python experiments/v3_hanging_test.py calibrate [--gradient-check]
+    python experiments/v3_hanging_test.py predict --pressure-bar P --centre-load-kg M \\
+        --tip-load-kg T --out DIR
+    python experiments/v3_hanging_test.py score [--quick] [--out DIR] [--no-figures]
+
+``calibrate`` writes ``experiments/results/v3_calibration.json`` (``converged`` true only
+when the search met its tolerance inside the bounds and the minimum is bracketed);
+``predict`` uses it and writes ``DIR/positions.csv`` (``node,x_m,y_m,z_m``, every node of
+``initial.npz`` in its numbering and frame) and ``DIR/summary.json`` (``converged``;
+``seconds``: the second, warm solve; ``compile_seconds``), exit code 1 and no
+``positions.csv`` when the solve does not converge; ``score`` predicts cases 1-5
+(``--quick``: case 1 only, for CI) and scores them against the markers (the peers' metric,
+LE + struts; canopy apart), the 12 measured lengths and the undeformed kite, and writes
+``v3_hanging_test.{txt,json}``, per-marker CSVs (``experiments/results`` or ``--out``) and
+the figures. One compiled program per process serves every case and scale.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+import time
+from functools import partial
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _v3_kite_fem import DATA, v3_tube_surfaces  # noqa: E402
+
+import fitting  # noqa: E402
+import jaxtube as jt  # noqa: E402
+
+MODEL = DATA / "kite_fem" / "initial.npz"
+CALIBRATION = HERE / "results" / "v3_calibration.json"
+RESULTS = HERE / "results"
+FIGURES = HERE / "figures"
+# case: (pressure [bar], centre load [kg], tip load [kg], marker file)
+CASES = {1: (0.15, 0.0, 0.0, "P1_S"), 2: (0.15, 9.7, 0.0, "P1_PL1"),
+         3: (0.15, 25.2, 0.0, "P1_PL2"), 4: (0.15, 0.0, 2.0, "P1_TL1"),
+         5: (0.15, 0.0, 5.0, "P1_TL2")}
+# Published RMS [mm] (data README): undeformed, Billow x 0.36, kite_fem (this version's
+# states, scored by the README's independent implementation), and issue 15's targets.
+PEERS = {1: (695, 100, 169), 2: (654, 152, 369), 3: (639, 171, 389), 4: (139, 134, 112),
+         5: (99, 89, 79)}
+TARGETS = {1: 95, 4: 110, 5: 79}
+TARGET_CENTRE_MEAN = 150
+# The 12 measured lengths (kite_fem examples/validation/Comparedata.py, reproduced to 1e-12
+# from kite_fem's solved states and its model_results.csv): strut sections run from
+# leading-edge nodes 1, 7, ..., 57 to trailing-edge nodes 2, 8, ..., 58. La..Li: distances
+# between neighbouring trailing-edge strut ends, from node 58 towards node 2; b: node 58 to
+# node 2 (trailing-edge span); LcsTL: node 25 (leading edge, left of centre) to node 2;
+# LcsTR: node 33 to node 58.
+# The hang: gravity (and the case's loads) in one step from the undeformed shape, as a
+# continuation in the lines' slack-taut blend width (jaxtube.hang_kite's load_factors and
+# tension_smoothing; the last stage at jaxtube's own width is the equilibrium reported).
+# Measured in experiments/results/bench_v3_hang.txt (README "Performance").
+HANG_SCHEDULE = ((1.0,), (1e-4,))
+SOLVER = jt.NewtonKKT(max_steps=400)
+TRAILING_EDGE_ENDS = (58, 52, 46, 40, 34, 26, 20, 14, 8, 2)
+LENGTH_NAMES = ("La", "Lb", "Lc", "Ld", "Le", "Lf", "Lg", "Lh", "Li", "b", "LcsTL", "LcsTR")
+LENGTH_PAIRS = tuple(zip(TRAILING_EDGE_ENDS[:-1], TRAILING_EDGE_ENDS[1:])) + (
+    (58, 2), (25, 2), (33, 58))
+
+
+def with_bending_scale(params, bending_scale):
+    """``params`` with every tube's bending law (a :class:`jaxtube.ScaledLaw`) scaled by
+    ``bending_scale`` (a traced number: one compiled program serves every scale)."""
+    laws = tuple(eqx.tree_at(lambda law: law.factor, law, bending_scale)
+                 if isinstance(law, jt.ScaledLaw) else law for law in params.bending_laws)
+    return eqx.tree_at(lambda p: p.bending_laws, params, laws)
+
+
+def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0):
+    """The imported V3 kite with one case's pressure and loads (bending law: Breukels 2011
+    x a factor, set by :func:`with_bending_scale`; torsion: Breukels 2011). Every case has
+    the same structure and parameter shapes (loads are forces on nodes), so one compiled
+    program solves all."""
+    return jt.import_kite_fem(MODEL, pressure_bar=pressure_bar, bending_scale=1.0,
+                              centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
+
+
+def hang(structure, params, log_scale):
+    """The hung kite (:func:`jaxtube.hang_kite` along ``HANG_SCHEDULE``) at bending scale
+    ``exp(log_scale)``: the :class:`jaxtube.Solution` of every stage (the last one is the
+    case's equilibrium). Traceable."""
+    params = with_bending_scale(params, jnp.exp(jnp.reshape(log_scale, ())))
+    factors, widths = HANG_SCHEDULE
+    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=factors,
+                        tension_smoothing=widths)
+
+
+class V3Program:
+    """One compiled hang of the V3 kite per process: ``(params, log s) -> Solution`` (all
+    cases share it: same structure and parameter shapes). ``compile_seconds``: its
+    compilation, once."""
+
+    _compiled = None
+    compile_seconds = None
+
+    @classmethod
+    def solve(cls, imported, scale):
+        arguments = (imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
+        if cls._compiled is None:
+            started = time.perf_counter()
+            cls._compiled = jax.jit(partial(hang, imported.structure)).lower(
+                *arguments).compile()
+            cls.compile_seconds = time.perf_counter() - started
+        return cls._compiled(*arguments)
+
+
+_SOLVED: dict = {}
+
+
+def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=True):
+    """Solve one case (a case solved before in this process is not solved again); with
+    ``repeat`` once more, which is timed (the first call of a process compiles). Returns a
+    dict: ``imported``, ``solution`` (every stage),
+    ``positions`` ``[247, 3]`` (kite_fem numbering and frame), ``converged`` (every stage),
+    ``seconds`` (the timed solve), ``compile_seconds``, ``newton_iterations`` per stage."""
+    key = (float(pressure_bar), float(centre_load_kg), float(tip_load_kg), float(scale))
+    if key in _SOLVED:  # the same case solved before in this process (tests, score+predict)
+        imported, solution, seconds = _SOLVED[key]
+    else:
+        imported = import_case(pressure_bar, centre_load_kg, tip_load_kg)
+        started = time.perf_counter()
+        solution = jax.block_until_ready(V3Program.solve(imported, scale))
+        seconds = time.perf_counter() - started
+        _SOLVED[key] = (imported, solution, seconds)
+    if repeat:
+        started = time.perf_counter()
+        solution = jax.block_until_ready(V3Program.solve(imported, scale))
+        seconds = time.perf_counter() - started
+    positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
+    return dict(imported=imported, solution=solution, positions=positions,
+                converged=bool(np.all(np.asarray(solution.converged))), seconds=seconds,
+                compile_seconds=V3Program.compile_seconds,
+                newton_iterations=np.asarray(solution.iterations).tolist())
+
+
+def measured_lengths(positions) -> np.ndarray:
+    """The 12 lengths [m] (``LENGTH_NAMES``) of kite positions ``[247, 3]``."""
+    positions = np.asarray(positions)
+    return np.asarray([np.linalg.norm(positions[a] - positions[b]) for a, b in LENGTH_PAIRS])
+
+
+def read_measured_lengths() -> dict[int, np.ndarray]:
+    """Case -> the 12 measured lengths [m] of ``validation_data.csv``."""
+    path = DATA / "kite_fem" / "validation_data.csv"
+    with open(path, newline="") as file:
+        rows = list(csv.DictReader(file))
+    out = {}
+    for line, row in enumerate(rows, start=2):
+        try:
+            out[int(row["Load case"])] = np.asarray([float(row[n]) for n in LENGTH_NAMES])
+        except (KeyError, ValueError) as error:
+            raise ValueError(f"{path}: line {line}: expected columns 'Load case', "
+                             f"{', '.join(LENGTH_NAMES)} with numbers [m] ({error})") from None
+    return out
+
+
+def load_calibration(path=CALIBRATION) -> dict:
+    try:
+        calibration = json.loads(Path(path).read_text())
+        float(calibration["bending_scale"])
+    except FileNotFoundError:
+        raise SystemExit(f"error: {path} not found; run `python {Path(__file__).name} "
+                         "calibrate` first") from None
+    except (KeyError, ValueError, TypeError) as error:
+        raise SystemExit(f"error: {path}: expected a JSON object with a number "
+                         f"'bending_scale' ({error})") from None
+    return calibration
+
+
+def markers_of(case: int):
+    return fitting.load_markers(DATA / "markers" / f"{CASES[case][3]}.csv")
+
+
+# ---------------------------------------------------------------- calibrate
+
+def case_rms_mm(scale, case=1):
+    """(RMS [mm] of ``case`` at bending scale ``scale`` (peers' metric, re-registered), the
+    solve's outcome dict of :func:`solve_case`)."""
+    pressure, centre, tip, _ = CASES[case]
+    outcome = solve_case(pressure, centre, tip, scale, repeat=False)
+    if not outcome["converged"]:
+        return None, outcome
+    found = fitting.score_shape(v3_tube_surfaces(outcome["positions"]), markers_of(case))
+    return found.rms_mm, outcome
+
+
+def implicit_derivative(scale, case=1):
+    """``dRMS/d log s`` [mm] at ``scale`` by the implicit function theorem (forward mode
+    through the hang) times the gradient of the marker RMS with the registration held at
+    its optimum (envelope theorem): the gradient a gradient-based fit would use. One more
+    compiled program (the hang under ``jax.jvp``)."""
+    pressure, centre, tip, _ = CASES[case]
+    imported = import_case(pressure, centre, tip)
+    structure = imported.structure
+
+    @jax.jit
+    def positions_and_tangent(params, log_scale):
+        return jax.jvp(lambda t: hang(structure, params, t).node_position[-1],
+                       (log_scale,), (jnp.ones_like(log_scale),))
+
+    x, dx = positions_and_tangent(imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
+    positions = imported.kite_positions(np.asarray(x))
+    # d kite positions: held nodes do not move.
+    tangent = imported.kite_positions(np.asarray(dx)) - imported.kite_positions(0 * np.asarray(dx))
+    surfaces = v3_tube_surfaces(positions)
+    markers = markers_of(case)
+    found = fitting.register(surfaces, markers)
+    gradient = jax.grad(lambda q: fitting.marker_rms(surfaces.with_positions(q), markers,
+                                                     found.registration))(jnp.asarray(positions))
+    return 1e3 * float(jnp.sum(gradient * tangent))
+
+
+def calibrate(args) -> int:
+    """Bounded Brent search (``scipy.optimize.minimize_scalar``) on ``log s`` of case 1's
+    re-registered RMS, then the slope checked on both sides of the optimum by central
+    differences, and (``--gradient-check``) the implicit derivative there."""
+    from scipy.optimize import minimize_scalar
+
+    started = time.perf_counter()
+    history = []
+
+    def objective(log_scale):
+        rms, outcome = case_rms_mm(float(np.exp(log_scale)))
+        history.append({"bending_scale": float(np.exp(log_scale)), "rms_mm": rms,
+                        "converged": outcome["converged"],
+                        "newton_iterations": outcome["newton_iterations"]})
+        print(f"s = {np.exp(log_scale):.5f}: RMS "
+              f"{'not converged' if rms is None else f'{rms:.2f} mm'}", file=sys.stderr,
+              flush=True)
+        if rms is None:
+            raise RuntimeError(f"the case 1 hang did not converge at s = {np.exp(log_scale)}")
+        return rms
+
+    bounds = (np.log(args.lower_scale), np.log(args.upper_scale))
+    found = minimize_scalar(objective, bounds=bounds, method="bounded",
+                            options={"xatol": args.xatol, "maxiter": args.max_evaluations})
+    log_s = float(found.x)
+    scale = float(np.exp(log_s))
+    at_bound = min(abs(log_s - bounds[0]), abs(log_s - bounds[1])) < 2 * args.xatol
+    h = 4 * args.xatol
+    rms_minus, rms_plus = objective(log_s - h), objective(log_s + h)
+    rms = float(found.fun)
+    bracketed = rms_minus >= rms and rms_plus >= rms
+    converged = bool(found.success) and not at_bound and bracketed
+    record = {
+        "fitted": "bending_scale: one factor s on Breukels' 2011 bending law (jaxtube."
+                  "ScaledLaw over EmpiricalBendingLaw2011, every tube); torsion: "
+                  "EmpiricalTorsionLaw2011 unscaled; searched in log s",
+        "to": "case 1 only (0.15 bar, gravity), markers P1_S.csv: RMS over LE and strut "
+              "markers of the tube-surface distance after rigid registration (the peers' metric)",
+        "method": f"scipy.optimize.minimize_scalar(method='bounded') on log s in "
+                  f"[log {args.lower_scale}, log {args.upper_scale}], xatol {args.xatol}; "
+                  "each evaluation a converged hang and a re-registration; converged = "
+                  f"Brent's own test, not at a bound, and RMS at log s +- {h:g} not lower",
+        "bending_scale": scale,
+        "rms_mm": rms,
+        "rms_mm_at_log_s_minus_plus": [rms_minus, rms_plus],
+        "converged": converged,
+        "message": str(found.message),
+        "evaluations": int(found.nfev),
+        "hang_schedule": {"load_factors": list(HANG_SCHEDULE[0]),
+                          "tension_smoothing": list(HANG_SCHEDULE[1])},
+        "history": history,
+        "seconds": round(time.perf_counter() - started, 1),
+        "compile_seconds": V3Program.compile_seconds,
+        "load_average": os.getloadavg(),
+    }
+    if args.gradient_check:
+        record["implicit_derivative_mm_per_log_s"] = implicit_derivative(scale)
+        record["central_difference_mm_per_log_s"] = (rms_plus - rms_minus) / (2 * h)
+    CALIBRATION.parent.mkdir(exist_ok=True)
+    CALIBRATION.write_text(json.dumps(record, indent=2) + "\n")
+    print(f"bending_scale {scale:.4f}: case 1 RMS {rms:.1f} mm (converged {converged}: "
+          f"{found.message}); wrote {CALIBRATION}")
+    return 0 if converged else 1
+
+
+# ---------------------------------------------------------------- predict
+
+def predict(args) -> int:
+    calibration = load_calibration()
+    scale = float(calibration["bending_scale"])
+    if not args.pressure_bar > 0:
+        print(f"error: --pressure-bar must be > 0, got {args.pressure_bar}", file=sys.stderr)
+        return 2
+    for name in ("centre_load_kg", "tip_load_kg"):
+        if not getattr(args, name) >= 0:
+            print(f"error: --{name.replace('_', '-')} must be >= 0, got "
+                  f"{getattr(args, name)}", file=sys.stderr)
+            return 2
+    outcome = solve_case(args.pressure_bar, args.centre_load_kg, args.tip_load_kg, scale)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = {"converged": outcome["converged"], "seconds": round(outcome["seconds"], 4),
+               "compile_seconds": round(outcome["compile_seconds"], 2),
+               "newton_iterations": outcome["newton_iterations"],
+               "pressure_bar": args.pressure_bar, "centre_load_kg": args.centre_load_kg,
+               "tip_load_kg": args.tip_load_kg, "bending_scale": scale,
+               "calibration": str(CALIBRATION.relative_to(HERE.parent)),
+               "load_average": os.getloadavg()}
+    if outcome["converged"]:
+        jt.write_positions_csv(out / "positions.csv.tmp", outcome["positions"])
+        os.replace(out / "positions.csv.tmp", out / "positions.csv")
+    elif (out / "positions.csv").exists():
+        (out / "positions.csv").unlink()  # never leave an older run's positions beside it
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if not outcome["converged"]:
+        print(f"error: the solve did not converge (Newton iterations per stage "
+              f"{outcome['newton_iterations']}); no positions.csv written, see "
+              f"{out / 'summary.json'}", file=sys.stderr)
+        return 1
+    print(f"converged: warm solve {outcome['seconds']:.3f} s, compile "
+          f"{outcome['compile_seconds']:.1f} s; wrote {out / 'positions.csv'} and "
+          f"{out / 'summary.json'}")
+    return 0
+
+
+# ---------------------------------------------------------------- score
+
+def score(args) -> int:
+    from _v3_figures import law_figure, rms_figure, shape_figure
+
+    calibration = load_calibration()
+    scale = float(calibration["bending_scale"])
+    cases = (1,) if args.quick else tuple(CASES) if args.cases is None else tuple(args.cases)
+    measured = read_measured_lengths()
+    undeformed_surfaces = v3_tube_surfaces()
+    rows, shapes = {}, {}
+    out = Path(args.out) if args.out else RESULTS
+    out.mkdir(parents=True, exist_ok=True)
+    for number in cases:
+        pressure, centre, tip, _ = CASES[number]
+        # Timed: a second solve of each case (not in --quick mode, which solves once).
+        outcome = solve_case(pressure, centre, tip, scale, repeat=not args.quick)
+        positions, converged = outcome["positions"], outcome["converged"]
+        seconds = None if args.quick else outcome["seconds"]
+        balance = jt.weight_and_reactions(outcome["imported"], outcome["solution"])
+        line_rows = jt.kite_fem_line_table(outcome["imported"], outcome["solution"])
+        markers = markers_of(number)
+        deformed = fitting.score_shape(v3_tube_surfaces(positions), markers)
+        null = fitting.score_shape(undeformed_surfaces, markers)
+        lengths = measured_lengths(positions)
+        error = np.abs(lengths - measured[number]) / measured[number]
+        null_error = np.abs(measured_lengths(undeformed_surfaces.node_positions)
+                            - measured[number]) / measured[number]
+        rows[number] = {
+            "pressure_bar": pressure, "centre_load_kg": centre, "tip_load_kg": tip,
+            "converged": converged, "seconds": seconds,
+            "compile_seconds": outcome["compile_seconds"],
+            "newton_iterations": outcome["newton_iterations"],
+            "weight_and_loads_N": balance["weight_and_loads_N"].tolist(),
+            "reaction_sum_N": balance["reaction_sum_N"].tolist(),
+            "taut_lines": {g: sum(r["state"] == "taut" for r in line_rows if r["element"] == g)
+                           for g in ("canopy", "bridle", "pulley")},
+            "rms_mm": deformed.rms_mm, "group_rms_mm": deformed.group_rms_mm,
+            "canopy_rms_mm": deformed.canopy_rms_mm,
+            "undeformed_rms_mm": null.rms_mm, "undeformed_canopy_rms_mm": null.canopy_rms_mm,
+            "length_mean_relative_error": float(error.mean()),
+            "undeformed_length_mean_relative_error": float(null_error.mean()),
+            "lengths_m": dict(zip(LENGTH_NAMES, lengths.tolist())),
+            "measured_lengths_m": dict(zip(LENGTH_NAMES, measured[number].tolist())),
+            "spanwise_order_reversed": deformed.registration.registration.reversed_order,
+        }
+        rows[number]["span_rms_mm"] = span_profile(deformed)
+        rows[number]["undeformed_span_rms_mm"] = span_profile(null)
+        shapes[number] = (positions, deformed)
+        write_marker_rows(out / f"v3_markers_case{number}.csv", deformed)
+        print(f"case {number}: RMS {deformed.rms_mm:.1f} mm (undeformed {null.rms_mm:.1f}), "
+              f"lengths {100 * error.mean():.1f} %, converged {converged}, Newton "
+              f"{outcome['newton_iterations']}", file=sys.stderr, flush=True)
+    text = score_table(rows, scale, calibration)
+    (out / "v3_hanging_test.txt").write_text(text)
+    (out / "v3_hanging_test.json").write_text(json.dumps(
+        {"bending_scale": scale, "calibration_converged": calibration.get("converged"),
+         "hang_schedule": {"load_factors": list(HANG_SCHEDULE[0]),
+                           "tension_smoothing": list(HANG_SCHEDULE[1])},
+         "cases": rows,
+         "peers_mm": {str(k): dict(zip(("undeformed", "billow_x0.36", "kite_fem"), v))
+                      for k, v in PEERS.items()},
+         "load_average": os.getloadavg(), "jax": jax.__version__}, indent=2) + "\n")
+    print(text)
+    if not args.no_figures:
+        FIGURES.mkdir(exist_ok=True)
+        for number, (positions, deformed) in shapes.items():
+            shape_figure(positions, deformed, f"V3 case {number}: RMS {deformed.rms_mm:.0f} mm",
+                         FIGURES / f"v3_case{number}_shape.png")
+        rms_figure(rows, PEERS, FIGURES / "v3_rms_per_case.png")
+        law_figure(scale, FIGURES / "v3_tube_law.png")
+    return 0 if all(r["converged"] for r in rows.values()) else 1
+
+
+SPAN_BANDS_M = ((-9.0, -2.5), (-2.5, -0.8), (-0.8, 0.8), (0.8, 2.5), (2.5, 9.0))
+
+
+def span_profile(shape_score) -> dict:
+    """RMS [mm] of the tube markers in bands of the model's spanwise coordinate ``y`` [m]
+    (kite_fem frame; the centre load hangs at node 29, y = 0): where along the span the
+    shape fails. Keys ``"y0..y1 m (n markers)"``."""
+    y = np.asarray(shape_score.registered_m)[:, 1]
+    tube = np.asarray([g != "canopy" for g in shape_score.model_group])
+    distance = np.asarray(shape_score.distance_mm)
+    out = {}
+    for low, high in SPAN_BANDS_M:
+        inside = tube & (y >= low) & (y < high)
+        if inside.any():
+            out[f"{low:+.1f}..{high:+.1f} m ({inside.sum()})"] = float(
+                np.sqrt(np.mean(distance[inside] ** 2)))
+    return out
+
+
+def write_marker_rows(path, shape_score) -> None:
+    """Per-marker comparison (columns of ``fitting``'s ``MARKER_CSV_COLUMNS``)."""
+    from fitting._shape.score import MARKER_CSV_COLUMNS
+
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(MARKER_CSV_COLUMNS)
+        writer.writerows(shape_score.marker_rows())
+
+
+def score_table(rows, scale, calibration) -> str:
+    lines = [f"TU Delft V3 hanging test: Breukels 2011 bending law x {scale:.4f} (calibrated "
+             f"on case 1 only: {calibration['rms_mm']:.1f} mm); cases 2-5 predicted",
+             "RMS [mm], peers' metric (LE + struts, tube-surface distance after rigid "
+             "registration); canopy apart; lengths: mean relative error of the 12 lengths",
+             f"{'case':>4} {'jaxtube':>8} {'target':>7} {'undef.':>7} {'(pub.)':>7} "
+             f"{'Billow.36':>9} {'kite_fem':>8} {'canopy':>7} {'lengths':>8} "
+             f"{'undef.len':>9} {'warm s':>7} conv"]
+    for number, row in rows.items():
+        target = TARGETS.get(number, f"m{TARGET_CENTRE_MEAN}")
+        canopy = row["canopy_rms_mm"]
+        lines.append(
+            f"{number:>4} {row['rms_mm']:8.1f} {target!s:>7} {row['undeformed_rms_mm']:7.1f} "
+            f"{PEERS[number][0]:7d} {PEERS[number][1]:9d} {PEERS[number][2]:8d} "
+            f"{'-' if canopy is None else f'{canopy:.1f}':>7} "
+            f"{100 * row['length_mean_relative_error']:7.1f}% "
+            f"{100 * row['undeformed_length_mean_relative_error']:8.1f}% "
+            f"{'-' if row['seconds'] is None else format(row['seconds'], '7.2f'):>7} "
+            f"{row['converged']}")
+    if 2 in rows and 3 in rows:
+        lines.append(f"cases 2-3 mean RMS {(rows[2]['rms_mm'] + rows[3]['rms_mm']) / 2:.1f} mm "
+                     f"(target <= {TARGET_CENTRE_MEAN})")
+    lines.append("per group RMS [mm]:")
+    for number, row in rows.items():
+        lines.append(f"  case {number}: " + ", ".join(
+            f"{k} {v:.0f}" for k, v in row["group_rms_mm"].items()))
+    lines.append("tube-marker RMS [mm] by spanwise band of the model (y, kite frame), deformed "
+                 "(undeformed):")
+    for number, row in rows.items():
+        lines.append(f"  case {number}: " + ", ".join(
+            f"{k} {v:.0f} ({row['undeformed_span_rms_mm'].get(k, float('nan')):.0f})"
+            for k, v in row["span_rms_mm"].items()))
+    load = os.getloadavg()
+    lines.append("warm s: second solve of each case, compilation excluded ('-': --quick solves "
+                 "once); Newton steps per stage: "
+                 + "; ".join(f"case {n} {r['newton_iterations']}" for n, r in rows.items()))
+    lines.append(f"load average "
+                 f"{load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on 2 cores; jax {jax.__version__}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    c = sub.add_parser("calibrate", help="fit the bending scale to case 1's markers")
+    c.add_argument("--lower-scale", type=float, default=0.15)
+    c.add_argument("--upper-scale", type=float, default=0.8)
+    c.add_argument("--xatol", type=float, default=2e-3, help="tolerance on log s")
+    c.add_argument("--max-evaluations", type=int, default=25)
+    c.add_argument("--gradient-check", action="store_true",
+                   help="also the implicit derivative at the optimum (one more compilation)")
+    p = sub.add_parser("predict", help="solve one case with the committed calibration")
+    p.add_argument("--pressure-bar", type=float, required=True)
+    p.add_argument("--centre-load-kg", type=float, default=0.0)
+    p.add_argument("--tip-load-kg", type=float, default=0.0)
+    p.add_argument("--out", required=True)
+    s = sub.add_parser("score", help="predict and score cases 1-5")
+    s.add_argument("--quick", action="store_true", help="case 1 only (CI)")
+    s.add_argument("--out", default=None, help="results folder (default experiments/results)")
+    s.add_argument("--no-figures", action="store_true")
+    s.add_argument("--cases", type=int, nargs="+", choices=sorted(CASES), default=None)
+    args = parser.parse_args(argv)
+    return {"calibrate": calibrate, "predict": predict, "score": score}[args.command](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
