@@ -58,6 +58,10 @@ import numpy as np
 #: ``experiments/bench_kkt.py`` and ``experiments/results/bench_kkt.txt``.
 SPARSE_CROSSOVER = 120
 
+#: Largest fraction of the KKT matrix's entries that the sparse pattern may hold for
+#: ``linear_solver="auto"`` to keep the sparse route (above it: dense LAPACK).
+SPARSE_MAX_FILL = 0.25
+
 LINEAR_SOLVERS = ("auto", "dense", "sparse")
 
 _KLUJAX = None
@@ -134,6 +138,20 @@ class DenseKKT:
         return jnp.linalg.solve(kkt, rhs)
 
 
+def kkt_pattern(blocks, n: int, m: int):
+    """The sparse route's KKT pattern from the blocks' static positions: ``keys`` (sorted
+    row-major positions ``row * (n + m) + col`` of the distinct entries) and ``slot`` (for
+    every contribution, in the order of :meth:`SparseKKT.kkt`, the entry it adds to)."""
+    rows, cols, _ = _flat_blocks(blocks)
+    diagonal = np.arange(n)
+    jac_rows = np.repeat(np.arange(m), n)
+    jac_cols = np.tile(np.arange(n), m)
+    multiplier = n + np.arange(m)
+    all_rows = np.concatenate([rows, cols, diagonal, n + jac_rows, jac_cols, multiplier])
+    all_cols = np.concatenate([cols, rows, diagonal, jac_cols, n + jac_rows, multiplier])
+    return np.unique(all_rows * (n + m) + all_cols, return_inverse=True)
+
+
 class SparseKKT:
     """The sparse route: KLU on a static pattern built from the blocks' positions.
 
@@ -149,15 +167,8 @@ class SparseKKT:
         rows, cols, _ = _flat_blocks(blocks)
         self.block_rows, self.block_cols = rows, cols
         self.on_diagonal = np.flatnonzero(rows == cols)
-        diagonal = np.arange(n)
-        jac_rows = np.repeat(np.arange(m), n)
-        jac_cols = np.tile(np.arange(n), m)
-        multiplier = n + np.arange(m)
-        # Every contribution's position, in the order of kkt() below.
-        all_rows = np.concatenate([rows, cols, diagonal, n + jac_rows, jac_cols, multiplier])
-        all_cols = np.concatenate([cols, rows, diagonal, jac_cols, n + jac_rows, multiplier])
         size = n + m
-        keys, slot = np.unique(all_rows * size + all_cols, return_inverse=True)
+        keys, slot = kkt_pattern(blocks, n, m)
         self.slot = slot.astype(np.int32).reshape(-1)
         self.nnz = int(keys.size)
         self.Ai = (keys // size).astype(np.int32)
@@ -217,8 +228,10 @@ class SparseKKT:
         return jnp.reshape(x, jnp.shape(rhs))
 
 
-def choose_route(linear_solver: str, blocks_given: bool, size: int) -> str:
-    """``"dense"`` or ``"sparse"`` for a ``NewtonKKT.linear_solver`` setting."""
+def choose_route(linear_solver: str, blocks_given: bool, size: int,
+                 pattern_entries: int = 0) -> str:
+    """``"dense"`` or ``"sparse"`` for a ``NewtonKKT.linear_solver`` setting, a KKT system of
+    ``size`` unknowns whose sparse pattern (:func:`kkt_pattern`) has ``pattern_entries``."""
     if linear_solver not in LINEAR_SOLVERS:
         raise ValueError(f"NewtonKKT.linear_solver must be one of {LINEAR_SOLVERS}, got "
                          f"{linear_solver!r}.")
@@ -234,4 +247,10 @@ def choose_route(linear_solver: str, blocks_given: bool, size: int) -> str:
             raise ValueError("NewtonKKT(linear_solver='sparse') runs on the CPU only (KLU); "
                              f"the default backend is {jax.default_backend()!r}.")
         return "sparse"
-    return "sparse" if blocks_given and on_cpu and size >= SPARSE_CROSSOVER else "dense"
+    # KLU has no dense kernels: a mostly dense pattern (the constraint Jacobian is stored
+    # dense, so many constraints on many unknowns) goes to LAPACK (the V3 kite: 554,757
+    # entries, a third of its KKT matrix; dense 1.9 s per Newton step against sparse 2.5-3.2 s
+    # on the same loaded machine, README).
+    mostly_dense = pattern_entries > SPARSE_MAX_FILL * size**2
+    return ("sparse" if blocks_given and on_cpu and size >= SPARSE_CROSSOVER
+            and not mostly_dense else "dense")

@@ -54,7 +54,7 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from .fixed_trials import Linearisation, fixed_trials_loop
-from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks
+from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -69,10 +69,6 @@ MU_FLOOR = 1e-14
 
 #: ``NewtonKKT.globalisation`` settings.
 GLOBALISATIONS = ("backtracking", "fixed_trials")
-
-#: Largest fraction of the KKT matrix's entries that the sparse pattern may hold for
-#: ``linear_solver="auto"`` to keep the sparse route (above it: dense LAPACK).
-SPARSE_MAX_FILL = 0.25
 
 
 class NewtonKKT(eqx.Module):
@@ -143,15 +139,10 @@ def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     n, m = z0.shape[0], lam0.shape[0]
     blocks = None if hessian_fn is None else hessian_fn(z0, lam0, args)
     given = blocks is not None and is_blocks(blocks)
-    if choose_route(solver.linear_solver, given, n + m) == "sparse":
-        sparse = SparseKKT(blocks, n, m)
-        # KLU has no dense kernels: a pattern that is mostly dense (the constraint Jacobian
-        # is stored dense, so many constraints on many unknowns) goes to LAPACK under
-        # "auto" (the V3 kite: 554,757 entries, about a third of its KKT matrix; dense 1.9 s per
-        # Newton step against sparse 2.5-3.2 s on the same loaded machine, README).
-        if solver.linear_solver == "auto" and sparse.nnz > SPARSE_MAX_FILL * (n + m) ** 2:
-            return DenseKKT(n, m)
-        return sparse
+    # The pattern is counted before any symbolic analysis: a mostly dense one goes dense.
+    entries = kkt_pattern(blocks, n, m)[0].size if given else 0
+    if choose_route(solver.linear_solver, given, n + m, entries) == "sparse":
+        return SparseKKT(blocks, n, m)
     return DenseKKT(n, m)
 
 
@@ -166,8 +157,7 @@ def _unless(skip, step, skipped):
     Hessian), and under ``vmap`` runs it once for the members that need it, masked.
     """
 
-    def body(carry):
-        _, _ = carry
+    def body(_):
         return jnp.ones((), bool), step(None)
 
     return jax.lax.while_loop(lambda carry: ~carry[0] & ~skip, body,
