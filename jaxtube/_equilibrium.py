@@ -23,6 +23,7 @@ from ._mechanics.energy import (
     world_joint_moments,
 )
 from ._mechanics.geometry import ReferenceGeometry, reference_geometry
+from ._mechanics.constraint_pattern import constraint_jacobian_pattern
 from ._mechanics.hessian import lagrangian_hessian_blocks
 from ._mechanics.kinematics import configuration, initial_state, spring_joints
 from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
@@ -211,8 +212,10 @@ def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, fa
                                          state, multipliers)
 
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
+    pattern = constraint_jacobian_pattern(structure, state0,
+                                          None if ctrl is None else ctrl[0])
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
-                           hessian=hessian)
+                           hessian=hessian, constraint_pattern=pattern)
     return _post_process(structure, params, geometry, eq, ctrl, factor)
 
 

@@ -118,3 +118,56 @@ def test_importing_klujax_restores_the_platform_setting():
                           text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "AFTER '' False" in done.stdout
+
+
+def _pattern_structures(tmp_path):
+    """Every case above (the chain with its displacement control), the mini kite in kite_fem's
+    format (attachment ties, fixed points, a pulley) and the V3 kite (ties on long paths)."""
+    from .kite_fem_mini import SUSPENSION, write_mini_kite
+
+    cases = [(name, structure, params, None if control is None else control[0])
+             for name, (structure, params), control in CASES]
+    write_mini_kite(tmp_path / "mini.npz")
+    mini = jt.import_kite_fem(tmp_path / "mini.npz", suspension=SUSPENSION, centre_node=3,
+                              tip_nodes=(7, 9), pressure_bar=0.2)
+    cases.append(("mini kite", mini.structure, mini.params, None))
+    v3 = jt.import_kite_fem(os.path.join(os.path.dirname(__file__), os.pardir, "experiments",
+                                         "data", "v3_hanging", "kite_fem", "initial.npz"),
+                            pressure_bar=0.15)
+    cases.append(("V3 kite", v3.structure, v3.params, None))
+    return cases
+
+
+def test_constraint_pattern_covers_the_jacobian(tmp_path):
+    """The static constraint-Jacobian pattern given to the sparse route
+    (``jaxtube._mechanics.constraint_pattern``) holds every entry that is nonzero at random
+    states (three per structure, large rotations), and no row is empty; on the V3 kite it is
+    far sparser than dense (what makes its KKT pattern sparse)."""
+    from jax.flatten_util import ravel_pytree
+
+    from jaxtube._equilibrium import tube_reference_geometry
+    from jaxtube._mechanics import energy_terms_and_constraints as _objective_terms
+    from jaxtube._mechanics.constraint_pattern import constraint_jacobian_pattern
+
+    rng = np.random.default_rng(5)
+    for name, structure, params, control_node in _pattern_structures(tmp_path):
+        geometry = tube_reference_geometry(structure, params)
+        state0 = jt.initial_state(structure, params)
+        z0, unravel = ravel_pytree(state0)
+        control = None if control_node is None else (control_node, jnp.array([0.0, 0.0, 1.0]),
+                                                     jnp.asarray(0.01))
+        rows, cols = constraint_jacobian_pattern(structure, state0, control_node)
+        jac_fn = jax.jit(jax.jacfwd(lambda zz: _objective_terms(
+            structure, geometry, unravel(zz), params, control)[1]))
+        m, n = jax.eval_shape(jac_fn, z0).shape
+        allowed = np.zeros((m, n), bool)
+        allowed[rows, cols] = True
+        assert allowed.any(axis=1).all(), name
+        for _ in range(3):
+            z = z0 + 0.5 * jnp.asarray(rng.standard_normal(z0.shape))
+            nonzero = np.asarray(jac_fn(z)) != 0.0
+            missed = np.argwhere(nonzero & ~allowed)
+            assert missed.size == 0, f"{name}: nonzero Jacobian entries outside the pattern " \
+                                     f"(row, column): {missed[:5].tolist()}"
+        if name == "V3 kite":
+            assert rows.size < 0.1 * m * n, rows.size

@@ -14,7 +14,8 @@ amount of work, and what the nested loops did becomes state carried from pass to
   After a step the level starts again at ``r = -1``.
 - *Trial step lengths*: the full step is tested as before (Armijo on the l1 merit, or it
   halves the KKT residual); if it is refused, ``line_search_trials`` halvings
-  ``alpha = 2^-(b+1) .. 2^-(b+T)`` are evaluated together (``vmap`` over the merit) and the
+  ``alpha = 2^-(b+1) .. 2^-(b+T)`` along the same curve with its second-order correction
+  (:mod:`jaxtube._solver.kkt_step`) are evaluated together (``vmap`` over the merit) and the
   largest that satisfies Armijo is taken. If none does, the member stays and the next pass
   continues the halvings from ``b + T``; past ``max_backtracks`` halvings the line search
   has failed (code 2), as before.
@@ -37,6 +38,8 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from .kkt_step import regularised_step, second_order_correction
 
 
 class Linearisation(NamedTuple):
@@ -82,13 +85,9 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
         j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
         mu = jnp.where(level < 0, mu_floor,
                        1e-8 * 10.0 ** jnp.maximum(level, 0).astype(dtype)) * h_scale
-        # As the backtracking iteration: a proximal term on the multipliers when regularised.
-        delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
-        rhs = jnp.concatenate([-grad_e, -c - delta * lam])
-        sol = route.solve(route.kkt(hessian, jacobian, mu, delta), rhs)
+        sol, curvature_ok, factors = regularised_step(route, hessian, jacobian, grad_e, c, lam,
+                                                      mu, h_scale, j_scale)
         dz, lam_new = sol[:n], sol[n:]
-        curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
-        curvature_ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
         proceed = curvature_ok | (level >= last_level)
 
         rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
@@ -104,21 +103,28 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
         full_accepted = (halvings == 0) & (full_ok | armijo_full)
 
         def trial_steps(_):
-            """The next ``trials`` halvings, evaluated together; the largest accepted."""
+            """The next ``trials`` halvings along ``z + a dz + a^2 s`` (``s`` the second-order
+            correction, as the backtracking iteration), evaluated together; the largest
+            accepted, and the point it reaches."""
+            correction = (second_order_correction(route, factors, c, jacobian, dz, full_c)
+                          if c.shape[0] else jnp.zeros_like(dz))
             exponent = halvings + 1 + jnp.arange(trials, dtype=jnp.int32)
             alphas = 0.5 ** exponent.astype(dtype)
-            e_t, c_t = jax.vmap(lambda a: problem.merit_parts(z + a * dz))(alphas)
+            e_t, c_t = jax.vmap(
+                lambda a: problem.merit_parts(z + a * dz + a**2 * correction))(alphas)
             merit = e_t + rho_new * jnp.sum(jnp.abs(c_t), axis=1)
             ok = (merit <= phi0 + 1e-4 * alphas * slope) & (exponent <= solver.max_backtracks)
-            first = jnp.argmax(ok)
-            return jnp.where(jnp.any(ok), alphas[first], 0.0)
+            alpha = jnp.where(jnp.any(ok), alphas[jnp.argmax(ok)], 0.0)
+            return alpha, z + alpha * dz + alpha**2 * correction
 
-        alpha = jnp.where(full_accepted, 1.0, problem.unless(
-            full_accepted | ~proceed, trial_steps, jnp.zeros((), dtype)))
+        alpha, z_trial = problem.unless(full_accepted | ~proceed, trial_steps,
+                                        (jnp.zeros((), dtype), z))
+        alpha = jnp.where(full_accepted, 1.0, alpha)
+        z_next = jnp.where(full_accepted, z + dz, z_trial)
         moved = proceed & (alpha > 0.0)
         exhausted = proceed & ~moved & (halvings + trials >= solver.max_backtracks)
         finite = finite & jnp.all(jnp.isfinite(dz))
-        return (z + alpha * dz, lam + alpha * (lam_new - lam), rho_new, moved, proceed,
+        return (z_next, lam + alpha * (lam_new - lam), rho_new, moved, proceed,
                 exhausted, finite, full_accepted, full_rows)
 
     def body(carry):

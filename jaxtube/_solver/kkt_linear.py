@@ -24,9 +24,10 @@ nodes, tension-only lines, pulleys) add their own blocks; nothing here changes.
   ``jnp.linalg.solve`` (LAPACK LU). Cost cubic in ``n + m``; the fastest for small
   structures and the only route off the CPU.
 - :class:`SparseKKT`: KLU (``klujax``) on a pattern fixed once per structure: the blocks'
-  positions, the diagonal, the constraint Jacobian (stored dense: ``m`` rows and columns;
-  the constraints of a tree-shaped structure are dense along the tree path anyway) and the
-  multiplier diagonal, de-duplicated in numpy at trace time. The values are a scatter-add
+  positions, the diagonal, the constraint Jacobian (the model's static pattern where it
+  gives one, ``solve_equilibrium``'s ``constraint_pattern``: a constraint touches only the
+  unknowns on its nodes' tree paths; otherwise stored dense) and the multiplier diagonal,
+  de-duplicated in numpy at trace time. The values are a scatter-add
   of the block values into that pattern (the dense matrix is never formed), and the
   symbolic analysis (fill-reducing ordering) is done once per pattern and reused by every
   factorisation, including the implicit-function-theorem tangent's.
@@ -51,6 +52,7 @@ import hashlib
 
 import jax
 import jax.numpy as jnp
+from jax.scipy.linalg import lu_factor, lu_solve
 import numpy as np
 
 #: Size ``n + m`` of the KKT system from which ``linear_solver="auto"`` takes the sparse
@@ -137,15 +139,34 @@ class DenseKKT:
     def solve(kkt, rhs):
         return jnp.linalg.solve(kkt, rhs)
 
+    @staticmethod
+    def factor(kkt):
+        """LU factors of the KKT matrix (LAPACK ``getrf``), for :meth:`solve_factored`."""
+        return lu_factor(kkt)
 
-def kkt_pattern(blocks, n: int, m: int):
-    """The sparse route's KKT pattern from the blocks' static positions: ``keys`` (sorted
-    row-major positions ``row * (n + m) + col`` of the distinct entries) and ``slot`` (for
-    every contribution, in the order of :meth:`SparseKKT.kkt`, the entry it adds to)."""
+    @staticmethod
+    def solve_factored(factors, rhs):
+        """``x`` with ``KKT x = rhs`` from :meth:`factor`'s LU factors (no refactorisation)."""
+        return lu_solve(factors, rhs)
+
+
+def jacobian_entries(n: int, m: int, jacobian_pattern=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, cols)`` of the constraint Jacobian's stored entries: the model's static
+    pattern (``solve_equilibrium``'s ``constraint_pattern``), or every entry (dense)."""
+    if jacobian_pattern is not None:
+        rows, cols = (np.asarray(a, dtype=np.int64).reshape(-1) for a in jacobian_pattern)
+        return rows, cols
+    return np.repeat(np.arange(m), n), np.tile(np.arange(n), m)
+
+
+def kkt_pattern(blocks, n: int, m: int, jacobian_pattern=None):
+    """The sparse route's KKT pattern from the blocks' static positions and the constraint
+    Jacobian's (:func:`jacobian_entries`): ``keys`` (sorted row-major positions
+    ``row * (n + m) + col`` of the distinct entries) and ``slot`` (for every contribution, in
+    the order of :meth:`SparseKKT.kkt`, the entry it adds to)."""
     rows, cols, _ = _flat_blocks(blocks)
     diagonal = np.arange(n)
-    jac_rows = np.repeat(np.arange(m), n)
-    jac_cols = np.tile(np.arange(n), m)
+    jac_rows, jac_cols = jacobian_entries(n, m, jacobian_pattern)
     multiplier = n + np.arange(m)
     all_rows = np.concatenate([rows, cols, diagonal, n + jac_rows, jac_cols, multiplier])
     all_cols = np.concatenate([cols, rows, diagonal, jac_cols, n + jac_rows, multiplier])
@@ -160,15 +181,16 @@ class SparseKKT:
     flat vector of block values (:meth:`hessian`), in the order of those blocks.
     """
 
-    def __init__(self, blocks, n: int, m: int):
+    def __init__(self, blocks, n: int, m: int, jacobian_pattern=None):
         klujax = klujax_module()
         self.klujax = klujax
         self.n, self.m = n, m
         rows, cols, _ = _flat_blocks(blocks)
         self.block_rows, self.block_cols = rows, cols
         self.on_diagonal = np.flatnonzero(rows == cols)
+        self.jac_rows, self.jac_cols = jacobian_entries(n, m, jacobian_pattern)
         size = n + m
-        keys, slot = kkt_pattern(blocks, n, m)
+        keys, slot = kkt_pattern(blocks, n, m, jacobian_pattern)
         self.slot = slot.astype(np.int32).reshape(-1)
         self.nnz = int(keys.size)
         self.Ai = (keys // size).astype(np.int32)
@@ -205,11 +227,22 @@ class SparseKKT:
         """KKT values ``[nnz]`` on the pattern ``(Ai, Aj)`` (scatter-add of the blocks)."""
         dtype = values.dtype
         half = 0.5 * values
-        jac = jnp.reshape(jacobian, (-1,))
+        jac = jacobian[self.jac_rows, self.jac_cols]
         contributions = jnp.concatenate([
             half, half, jnp.full((self.n,), mu, dtype), jac, jac,
             jnp.full((self.m,), -delta, dtype)])
         return jax.ops.segment_sum(contributions, self.slot, self.nnz)
+
+    @staticmethod
+    def factor(kkt):
+        """The KKT values themselves: ``solve_with_symbol`` factorises and frees within one
+        call (klujax's ``factor`` handle inside a loop would leak), so :meth:`solve_factored`
+        refactorises numerically; the symbolic analysis is reused."""
+        return kkt
+
+    def solve_factored(self, factors, rhs):
+        """``x`` with ``KKT x = rhs`` from :meth:`factor`'s output."""
+        return self.solve(factors, rhs)
 
     def solve(self, kkt, rhs):
         """``x`` with ``KKT x = rhs`` for KKT values ``[nnz]`` and ``rhs [n + m]``.
@@ -247,10 +280,10 @@ def choose_route(linear_solver: str, blocks_given: bool, size: int,
             raise ValueError("NewtonKKT(linear_solver='sparse') runs on the CPU only (KLU); "
                              f"the default backend is {jax.default_backend()!r}.")
         return "sparse"
-    # KLU has no dense kernels: a mostly dense pattern (the constraint Jacobian is stored
-    # dense, so many constraints on many unknowns) goes to LAPACK (the V3 kite: 554,757
-    # entries, a third of its KKT matrix; dense 1.9 s per Newton step against sparse 2.5-3.2 s
-    # on the same loaded machine, README).
+    # KLU has no dense kernels: a mostly dense pattern (a constraint Jacobian stored dense
+    # because the model gave no pattern: many constraints on many unknowns) goes to LAPACK
+    # (the V3 kite without its pattern: 554,757 entries, a third of its KKT matrix; dense
+    # 1.9 s per Newton step against sparse 2.5-3.2 s on the same loaded machine, README).
     mostly_dense = pattern_entries > SPARSE_MAX_FILL * size**2
     return ("sparse" if blocks_given and on_cpu and size >= SPARSE_CROSSOVER
             and not mostly_dense else "dense")

@@ -31,7 +31,9 @@ Globalisation:
 - *Backtracking line search* (Armijo) on the l1 exact-penalty merit
   ``E + rho |c|_1`` with ``rho > |lambda_new|_inf`` (Nocedal & Wright 2006, section 18.3).
   A full step is also taken when it halves the KKT residual, which avoids the Maratos
-  effect and round-off stalls near the solution.
+  effect and round-off stalls near the solution. A refused full step is backtracked along
+  ``z + alpha dz + alpha^2 s`` with the second-order correction ``s`` of curved constraints
+  (:mod:`jaxtube._solver.kkt_step`), which avoids the Maratos effect far from it.
 
 Gradients through the solution use the implicit function theorem: at ``F(y*, lambda*,
 args) = 0`` (``F`` the KKT residual) the tangent is ``-K^{-1} dF/dargs . dargs``, with ``K``
@@ -55,6 +57,7 @@ from jax.flatten_util import ravel_pytree
 
 from .fixed_trials import Linearisation, fixed_trials_loop
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
+from .kkt_step import regularised_step, second_order_correction
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -135,14 +138,16 @@ class EquilibriumResult(eqx.Module):
 def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     """The linear-algebra route (``jaxtube._solver.kkt_linear``) for this problem, chosen at trace
     time. A model's hessian is traced once here for its static block positions (its
-    values are unused, so the compiled program drops them)."""
+    values are unused, so the compiled program drops them); its ``constraint_pattern``
+    attribute, where set, is the constraint Jacobian's static pattern."""
     n, m = z0.shape[0], lam0.shape[0]
     blocks = None if hessian_fn is None else hessian_fn(z0, lam0, args)
     given = blocks is not None and is_blocks(blocks)
+    pattern = getattr(hessian_fn, "constraint_pattern", None)
     # The pattern is counted before any symbolic analysis: a mostly dense one goes dense.
-    entries = kkt_pattern(blocks, n, m)[0].size if given else 0
+    entries = kkt_pattern(blocks, n, m, pattern)[0].size if given else 0
     if choose_route(solver.linear_solver, given, n + m, entries) == "sparse":
-        return SparseKKT(blocks, n, m)
+        return SparseKKT(blocks, n, m, pattern)
     return DenseKKT(n, m)
 
 
@@ -248,31 +253,23 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
 
             def solve_with(mu):
-                # Redundant constraints (e.g. an inextensible straight tube between two
-                # pins) make J rank deficient: regularised tries add a proximal term on the
-                # multipliers, -delta (lambda_new - lambda), which vanishes at a solution.
-                delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
-                rhs = jnp.concatenate([-grad_e, -c - delta * lam])
-                sol = route.solve(route.kkt(hessian, jacobian, mu, delta), rhs)
-                dz = sol[:n]
-                curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
-                ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
-                return sol, ok
+                return regularised_step(route, hessian, jacobian, grad_e, c, lam, mu,
+                                        h_scale, j_scale)
 
             def reg_cond(rc):
-                _, ok, tries, _ = rc
+                _, ok, _, tries, _ = rc
                 return (~ok) & (tries < solver.max_regularisations)
 
             def reg_body(rc):
-                _, _, tries, mu = rc
+                _, _, _, tries, mu = rc
                 mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
-                sol, ok = solve_with(mu)
-                return sol, ok, tries + 1, mu
+                sol, ok, factors = solve_with(mu)
+                return sol, ok, factors, tries + 1, mu
 
-            sol0, ok0 = solve_with(MU_FLOOR * h_scale)
-            sol, _, _, _ = jax.lax.while_loop(
+            sol0, ok0, factors0 = solve_with(MU_FLOOR * h_scale)
+            sol, _, factors, _, _ = jax.lax.while_loop(
                 reg_cond, reg_body,
-                (sol0, ok0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
+                (sol0, ok0, factors0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
             dz, lam_new = sol[:n], sol[n:]
 
             rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
@@ -285,6 +282,14 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                                                                       solver.constraint_tol))
             armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
 
+            full_accepted = full_ok | armijo_full
+            # Refused full step: backtrack along z + alpha dz + alpha^2 s, s the second-order
+            # correction of curved constraints (kkt_step's docstring; s = 0 without them).
+            correction = (jnp.zeros_like(dz) if m == 0 else _unless(
+                full_accepted,
+                lambda _: second_order_correction(route, factors, c, jacobian, dz, full_c),
+                jnp.zeros_like(dz)))
+
             def ls_cond(lc):
                 alpha, accepted, tries = lc
                 return (~accepted) & (tries < solver.max_backtracks)
@@ -292,14 +297,16 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             def ls_body(lc):
                 alpha, _, tries = lc
                 alpha = 0.5 * alpha
-                accepted = merit(z + alpha * dz, rho_new) <= phi0 + 1e-4 * alpha * slope
+                accepted = (merit(z + alpha * dz + alpha**2 * correction, rho_new)
+                            <= phi0 + 1e-4 * alpha * slope)
                 return alpha, accepted, tries + 1
 
             alpha, accepted, _ = jax.lax.while_loop(
-                ls_cond, ls_body, (jnp.ones((), z.dtype), full_ok | armijo_full,
+                ls_cond, ls_body, (jnp.ones((), z.dtype), full_accepted,
                                    jnp.zeros((), jnp.int32)))
             finite = finite & jnp.all(jnp.isfinite(dz))
-            return z + alpha * dz, lam + alpha * (lam_new - lam), rho_new, accepted, finite
+            z_new = z + alpha * dz + jnp.where(full_accepted, 0.0, alpha**2) * correction
+            return z_new, lam + alpha * (lam_new - lam), rho_new, accepted, finite
 
         def stay(_):
             return z, lam, rho, jnp.ones((), bool), jnp.ones((), bool)
@@ -369,6 +376,7 @@ def solve_equilibrium(
     solver: NewtonKKT = NewtonKKT(),
     initial_multipliers: Array | None = None,
     hessian=None,
+    constraint_pattern=None,
 ) -> EquilibriumResult:
     """Minimise an energy subject to equality constraints, both from one ``objective``.
 
@@ -390,6 +398,10 @@ def solve_equilibrium(
             ``jax.flatten_util.ravel_pytree``; a model that knows its sparsity assembles it
             much faster than the default (dense forward-over-reverse autodiff), and blocks
             open the sparse KKT route.
+        constraint_pattern: optional static ``(rows, cols)`` integer arrays: the entries of
+            the constraint Jacobian ``dc/dstate`` (flattened state) that can be nonzero, a
+            superset (used with ``hessian`` blocks on the sparse route; without it the
+            Jacobian is stored dense there). A missed nonzero would give wrong steps.
 
     Works under ``jit``, ``vmap`` (each member reports its own convergence), ``grad`` and
     ``jvp``. Requires float64 (see the README): float32 cannot reach Newton tolerances.
@@ -409,6 +421,8 @@ def solve_equilibrium(
     if hessian is not None:
         def flat_hessian(z, lam, a):
             return hessian(unravel(z), lam, a)
+
+        flat_hessian.constraint_pattern = constraint_pattern
 
     m = jax.eval_shape(flat_objective, z0, args)[1].shape[0]
     lam0 = jnp.zeros((m,), z0.dtype) if initial_multipliers is None else initial_multipliers

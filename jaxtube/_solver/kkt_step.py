@@ -1,0 +1,73 @@
+"""One regularised Newton-KKT step and its second-order correction, shared by both
+globalisations of :mod:`jaxtube._solver.newton_kkt` (``"backtracking"``) and
+:mod:`jaxtube._solver.fixed_trials`.
+
+**The regularised step.** With Hessian ``H``, constraint Jacobian ``J``, energy gradient
+``g`` and constraints ``c``, the step ``dz`` and the new multipliers solve::
+
+    [H + mu I   J^T     ] [dz     ]   [-g                 ]
+    [J          -delta I] [lam_new] = [-c - delta lam     ]
+
+``delta = (1e-10 + mu / h) j^2 / h`` (``h`` the largest diagonal entry of ``H``, ``j`` the
+largest entry of ``J``) is a proximal term on the multipliers, ``-delta (lam_new - lam)``,
+which vanishes at a solution and keeps a rank-deficient ``J`` (redundant constraints: an
+inextensible straight tube between two pins) solvable. The step is accepted by the
+inertia-free curvature test (Chiang & Zavala 2016) ``dz^T (H + mu I) dz >= 1e-10 h |dz|^2``;
+otherwise the caller raises ``mu``.
+
+**Second-order correction** (Nocedal & Wright 2006, *Numerical Optimization*, 2nd ed.,
+section 15.4 and Algorithm 18.3). The step satisfies the linearised constraints
+``c + J dz = 0``; on curved constraints (a point tied to a tube node, which moves on a sphere
+as its segments rotate; a tip held by a displacement control) the full step leaves
+``c(z + dz) = w``, a violation of second order in ``dz``. The l1 merit ``E + rho |c|_1``
+then rejects steps whose energy decrease is real (the Maratos effect), far from the solution
+too: on the TU Delft V3 kite the line search cut a good Newton step 16- to 32-fold because
+the ties' curvature violation, times ``rho``, outweighed the energy decrease. The correction
+``s`` is the least-change step, in the metric of the same KKT matrix, that removes ``w``::
+
+    K [s; .] = [0; -w],      w = c(z + dz) - c - J dz,
+
+and the line search runs along the curve ``z + alpha dz + alpha^2 s``, on which the
+constraints are ``(1 - alpha) c + O(alpha^3 |dz|^3)`` (Nocedal & Wright's curvilinear
+search). It reuses the step's factorisation (dense LU; KLU refactorises: its symbolic
+analysis is reused). For constraints linear in the state ``w = 0`` and ``s = 0`` exactly, so
+such problems take the same iterates as without it.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+
+def regularised_step(route, hessian, jacobian, grad_e, c, lam, mu, h_scale, j_scale):
+    """Solve the regularised KKT system at regularisation ``mu`` (see the module docstring).
+
+    Args:
+        route: ``DenseKKT`` or ``SparseKKT`` (``jaxtube._solver.kkt_linear``).
+        hessian: the Hessian in the route's form. jacobian: ``[m, n]``.
+        grad_e: energy gradient ``[n]``. c: constraints ``[m]``. lam: multipliers ``[m]``.
+        mu, h_scale, j_scale: scalars (``h_scale`` > 0).
+
+    Returns:
+        ``(solution [n + m], curvature_ok, factors)``: ``solution`` is ``(dz, lam_new)``;
+        ``factors`` the factorised KKT matrix for :func:`second_order_correction`.
+    """
+    n = grad_e.shape[0]
+    delta = (1e-10 + mu / h_scale) * j_scale**2 / h_scale
+    rhs = jnp.concatenate([-grad_e, -c - delta * lam])
+    factors = route.factor(route.kkt(hessian, jacobian, mu, delta))
+    sol = route.solve_factored(factors, rhs)
+    dz = sol[:n]
+    curvature = dz @ route.hessian_times(hessian, dz) + mu * (dz @ dz)
+    ok = (curvature >= 1e-10 * h_scale * (dz @ dz)) & jnp.all(jnp.isfinite(sol))
+    return sol, ok, factors
+
+
+def second_order_correction(route, factors, c, jacobian, dz, c_full):
+    """The correction ``s [n]`` of the module docstring, from the constraints ``c`` at ``z``,
+    ``c_full`` at ``z + dz`` and the step's ``factors``; zeros where it is not finite."""
+    n = dz.shape[0]
+    curvature_violation = c_full - c - jacobian @ dz
+    rhs = jnp.concatenate([jnp.zeros((n,), dz.dtype), -curvature_violation])
+    correction = route.solve_factored(factors, rhs)[:n]
+    return jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
