@@ -85,11 +85,24 @@ TARGET_CENTRE_MEAN = 150
 # between neighbouring trailing-edge strut ends, from node 58 towards node 2; b: node 58 to
 # node 2 (trailing-edge span); LcsTL: node 25 (leading edge, left of centre) to node 2;
 # LcsTR: node 33 to node 58.
-# The hang: gravity (and the case's loads) in one step from the undeformed shape, as a
-# continuation in the lines' slack-taut blend width (jaxtube.hang_kite's load_factors and
-# tension_smoothing; the last stage at jaxtube's own width is the equilibrium reported).
-# Measured in experiments/results/bench_v3_hang.txt (README "Performance").
-HANG_SCHEDULE = ((1.0,), (1e-4,))
+# The hang, from the undeformed shape (jaxtube.hang_kite's load_factors: fractions of gravity
+# and the case's loads, one per stage, each stage at most SOLVER.max_steps Newton steps from
+# where the previous one ended). Gravity-only and tip-load cases: full load at once (the
+# later stages start at the equilibrium and take no step). Centre-load cases (the load on an
+# unbridled leading-edge node, which makes the kite pitch and its bridle lines change state):
+# a proportional continuation; from the undeformed shape in one stage, or from the gravity
+# equilibrium, Newton did not converge in 400 steps (experiments/README). The last stage, at
+# full load, is the equilibrium reported and must converge; the intermediate ones are a path,
+# reported per stage. One compiled program serves every schedule (the factors are traced).
+ONE_STAGE = (1.0, 1.0, 1.0, 1.0, 1.0)
+CONTINUATION = (0.2, 0.4, 0.6, 0.8, 1.0)
+
+
+def hang_schedule(centre_load_kg) -> tuple[float, ...]:
+    """The load factors per stage for a case (see the comment above)."""
+    return CONTINUATION if centre_load_kg > 0 else ONE_STAGE
+
+
 SOLVER = jt.NewtonKKT(max_steps=400)
 TRAILING_EDGE_ENDS = (58, 52, 46, 40, 34, 26, 20, 14, 8, 2)
 LENGTH_NAMES = ("La", "Lb", "Lc", "Ld", "Le", "Lf", "Lg", "Lh", "Li", "b", "LcsTL", "LcsTR")
@@ -114,14 +127,12 @@ def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0):
                               centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
 
 
-def hang(structure, params, log_scale):
-    """The hung kite (:func:`jaxtube.hang_kite` along ``HANG_SCHEDULE``) at bending scale
-    ``exp(log_scale)``: the :class:`jaxtube.Solution` of every stage (the last one is the
-    case's equilibrium). Traceable."""
+def hang(structure, params, log_scale, load_factors):
+    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]``, see
+    :func:`hang_schedule`) at bending scale ``exp(log_scale)``: the :class:`jaxtube.Solution`
+    of every stage (the last one is the case's equilibrium). Traceable."""
     params = with_bending_scale(params, jnp.exp(jnp.reshape(log_scale, ())))
-    factors, widths = HANG_SCHEDULE
-    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=factors,
-                        tension_smoothing=widths)
+    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=load_factors)
 
 
 class V3Program:
@@ -132,15 +143,24 @@ class V3Program:
     _compiled = None
     compile_seconds = None
 
+    @staticmethod
+    def _arguments(imported, scale, load_factors):
+        return (imported.params, jnp.log(jnp.asarray(scale, dtype=float)),
+                jnp.asarray(load_factors, dtype=float))
+
     @classmethod
-    def solve(cls, imported, scale):
-        arguments = (imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
+    def compile(cls, imported, scale):
+        """Compile the program once (ahead of any timed solve)."""
         if cls._compiled is None:
             started = time.perf_counter()
             cls._compiled = jax.jit(partial(hang, imported.structure)).lower(
-                *arguments).compile()
+                *cls._arguments(imported, scale, ONE_STAGE)).compile()
             cls.compile_seconds = time.perf_counter() - started
-        return cls._compiled(*arguments)
+
+    @classmethod
+    def solve(cls, imported, scale, load_factors=ONE_STAGE):
+        cls.compile(imported, scale)
+        return cls._compiled(*cls._arguments(imported, scale, load_factors))
 
 
 _SOLVED: dict = {}
@@ -151,24 +171,30 @@ def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False):
     ``repeat`` once more, timed again (the program is compiled ahead of time, before the
     first solve, so every timed solve is warm). Returns a
     dict: ``imported``, ``solution`` (every stage),
-    ``positions`` ``[247, 3]`` (kite_fem numbering and frame), ``converged`` (every stage),
+    ``positions`` ``[247, 3]`` (kite_fem numbering and frame), ``converged`` (the last
+    stage, the equilibrium reported), ``stage_converged``, ``load_factors``,
     ``seconds`` (the timed solve), ``compile_seconds``, ``newton_iterations`` per stage."""
     key = (float(pressure_bar), float(centre_load_kg), float(tip_load_kg), float(scale))
     if key in _SOLVED:  # the same case solved before in this process (tests, score+predict)
         imported, solution, seconds = _SOLVED[key]
     else:
         imported = import_case(pressure_bar, centre_load_kg, tip_load_kg)
+        V3Program.compile(imported, scale)  # not timed: every timed solve is warm
         started = time.perf_counter()
-        solution = jax.block_until_ready(V3Program.solve(imported, scale))
+        solution = jax.block_until_ready(V3Program.solve(
+            imported, scale, hang_schedule(centre_load_kg)))
         seconds = time.perf_counter() - started
         _SOLVED[key] = (imported, solution, seconds)
     if repeat:
         started = time.perf_counter()
-        solution = jax.block_until_ready(V3Program.solve(imported, scale))
+        solution = jax.block_until_ready(V3Program.solve(
+            imported, scale, hang_schedule(centre_load_kg)))
         seconds = time.perf_counter() - started
     positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
     return dict(imported=imported, solution=solution, positions=positions,
-                converged=bool(np.all(np.asarray(solution.converged))), seconds=seconds,
+                converged=bool(np.asarray(solution.converged)[-1]),
+                stage_converged=np.asarray(solution.converged).tolist(),
+                load_factors=list(hang_schedule(centre_load_kg)), seconds=seconds,
                 compile_seconds=V3Program.compile_seconds,
                 newton_iterations=np.asarray(solution.iterations).tolist())
 
@@ -235,7 +261,8 @@ def implicit_derivative(scale, case=1):
 
     @jax.jit
     def positions_and_tangent(params, log_scale):
-        return jax.jvp(lambda t: hang(structure, params, t).node_position[-1],
+        factors = jnp.asarray(hang_schedule(centre), dtype=float)
+        return jax.jvp(lambda t: hang(structure, params, t, factors).node_position[-1],
                        (log_scale,), (jnp.ones_like(log_scale),))
 
     x, dx = positions_and_tangent(imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
@@ -298,8 +325,7 @@ def calibrate(args) -> int:
         "converged": converged,
         "message": str(found.message),
         "evaluations": int(found.nfev),
-        "hang_schedule": {"load_factors": list(HANG_SCHEDULE[0]),
-                          "tension_smoothing": list(HANG_SCHEDULE[1])},
+        "hang_load_factors": list(ONE_STAGE),
         "history": history,
         "seconds": round(time.perf_counter() - started, 1),
         "compile_seconds": V3Program.compile_seconds,
@@ -334,6 +360,8 @@ def predict(args) -> int:
     summary = {"converged": outcome["converged"], "seconds": round(outcome["seconds"], 4),
                "compile_seconds": round(outcome["compile_seconds"], 2),
                "newton_iterations": outcome["newton_iterations"],
+               "load_factors": outcome["load_factors"],
+               "stage_converged": outcome["stage_converged"],
                "pressure_bar": args.pressure_bar, "centre_load_kg": args.centre_load_kg,
                "tip_load_kg": args.tip_load_kg, "bending_scale": scale,
                "calibration": str(CALIBRATION.relative_to(HERE.parent)),
@@ -388,6 +416,8 @@ def score(args) -> int:
             "converged": converged, "seconds": seconds,
             "compile_seconds": outcome["compile_seconds"],
             "newton_iterations": outcome["newton_iterations"],
+            "load_factors": outcome["load_factors"],
+            "stage_converged": outcome["stage_converged"],
             "weight_and_loads_N": balance["weight_and_loads_N"].tolist(),
             "reaction_sum_N": balance["reaction_sum_N"].tolist(),
             "taut_lines": {g: sum(r["state"] == "taut" for r in line_rows if r["element"] == g)
@@ -412,8 +442,7 @@ def score(args) -> int:
     (out / "v3_hanging_test.txt").write_text(text)
     (out / "v3_hanging_test.json").write_text(json.dumps(
         {"bending_scale": scale, "calibration_converged": calibration.get("converged"),
-         "hang_schedule": {"load_factors": list(HANG_SCHEDULE[0]),
-                           "tension_smoothing": list(HANG_SCHEDULE[1])},
+         "hang_load_factors": {"one_stage": list(ONE_STAGE), "centre_loads": list(CONTINUATION)},
          "cases": rows,
          "peers_mm": {str(k): dict(zip(("undeformed", "billow_x0.36", "kite_fem"), v))
                       for k, v in PEERS.items()},
@@ -491,8 +520,8 @@ def score_table(rows, scale, calibration) -> str:
             f"{k} {v:.0f} ({row['undeformed_span_rms_mm'].get(k, float('nan')):.0f})"
             for k, v in row["span_rms_mm"].items()))
     load = os.getloadavg()
-    lines.append("warm s: second solve of each case, compilation excluded ('-': --quick solves "
-                 "once); Newton steps per stage: "
+    lines.append("warm s: each case's solve, the program compiled ahead of the first one "
+                 "(compilation excluded); Newton steps per stage: "
                  + "; ".join(f"case {n} {r['newton_iterations']}" for n, r in rows.items()))
     lines.append(f"load average "
                  f"{load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on 2 cores; jax {jax.__version__}")
