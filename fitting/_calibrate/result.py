@@ -243,6 +243,8 @@ class FitResult:
         for p in self.parameters:
             if p.fixed:
                 se, status = "", "fixed"
+            elif p.name in self.convergence.held:
+                se, status = "--", "HELD (not determined by the data)"
             elif not p.identified:
                 se, status = "--", "NOT IDENTIFIED"
             else:
