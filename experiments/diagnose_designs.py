@@ -64,6 +64,8 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", default=list(HIDDEN))
     parser.add_argument("--results", default="diagnose_designs.txt",
                         help="file name under experiments/results")
+    parser.add_argument("--progress", action="store_true",
+                        help="show the diagnosis' progress bar (which fit it is on)")
     args = parser.parse_args()
     (RESULTS / "diagnose_designs").mkdir(parents=True, exist_ok=True)
     lines = [f"diagnose_designs.py, {time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} CPUs, "
@@ -74,7 +76,7 @@ def main() -> None:
     for name in args.only:
         data = ft.load_measurements(EFFECTS / f"{name}.csv")
         t0, _EVALUATIONS[0] = time.perf_counter(), 0
-        diagnosis = ft.diagnose(data, options=ft.DiagnoseOptions(progress=False))
+        diagnosis = ft.diagnose(data, options=ft.DiagnoseOptions(progress=args.progress))
         seconds = time.perf_counter() - t0
         floor = DESIGNS[name]["noise_floor_N"]
         ok, why = judge(name, diagnosis)
