@@ -94,3 +94,50 @@ def test_likelihood_ratio_boundary_mixture():
                                 + 0.5 * scipy.stats.chi2.sf(9.0, 2), rel=1e-12)
     with pytest.raises(ValueError, match="at_bound"):
         ft.likelihood_ratio_p_value(1.0, 1, 2)
+
+
+def _refit_stub(outcomes, calls):
+    """A stand-in for ``fit_problem``: the refit from ``start`` ends at ``outcomes[start]``
+    ``(vector, chi2)``; ``calls`` records the starts."""
+
+    def fit_problem(problem, options):
+        start = tuple(float(v) for v in problem.start)
+        calls.append(start)
+        vector, chi2 = outcomes[start]
+        residual = np.array([np.sqrt(chi2)])
+        return types.SimpleNamespace(
+            vector=np.array(vector, float), residual=residual, jacobian=np.zeros((1, 2)),
+            problem=types.SimpleNamespace(batch=types.SimpleNamespace(force=np.zeros(1))))
+
+    return fit_problem
+
+
+def _box_problem():
+    """Two radius-scaling exponents, null 0 inside the box [-4, 4]."""
+    problem = types.SimpleNamespace(
+        names=("radius_scaling.curvature_radius_excess", "radius_scaling.moment_radius_excess"),
+        base=np.zeros(2), lower=np.full(2, -4.0), upper=np.full(2, 4.0), free_names=())
+    problem.with_free = lambda names, start: types.SimpleNamespace(start=np.asarray(start))
+    return problem
+
+
+def test_a_refit_at_the_edge_of_its_box_is_repeated_from_the_typical_size(monkeypatch):
+    """From the null the refit ends at the box's edge (+4, another basin): it is repeated
+    from the typical size (-3, the tension-field tube's) and the better refit is kept; a
+    refit that ends inside the box is not repeated."""
+    from fitting._diagnose import selection
+
+    problem, names = _box_problem(), _box_problem().names
+    typical = tuple(p.typical for p in ft.RadiusScaling.parameters)
+    assert typical[0] == -3.0
+    calls = []
+    monkeypatch.setattr(selection, "fit_problem", _refit_stub(
+        {(0.0, 0.0): ((4.0, 0.2), 100.0), typical: ((-3.1, 0.0), 10.0)}, calls))
+    refit, failure = selection.refit_candidate(problem, names, ft.RadiusScaling, None)
+    assert calls == [(0.0, 0.0), typical] and not failure
+    assert refit.vector[0] == pytest.approx(-3.1)
+    calls.clear()
+    monkeypatch.setattr(selection, "fit_problem", _refit_stub(
+        {(0.0, 0.0): ((-2.6, 0.1), 12.0)}, calls))
+    refit, _ = selection.refit_candidate(problem, names, ft.RadiusScaling, None)
+    assert calls == [(0.0, 0.0)] and refit.vector[0] == pytest.approx(-2.6)

@@ -43,8 +43,9 @@ import jaxtube as jt
 @dataclasses.dataclass(frozen=True)
 class EffectParameter:
     """One effect parameter: ``name`` (the field), ``unit``, ``null`` (effect vanishes),
-    ``lower``/``upper`` bounds and a ``typical`` magnitude (a scale for the optimiser, and a
-    second starting point of the diagnosis' refits); ``plausible``: the range ``(low, high)``
+    ``lower``/``upper`` bounds and a ``typical`` value (a physically typical size: where
+    :func:`fitting.fit` starts the parameter, the diagnosis' second starting point, and by
+    its magnitude a scale); ``plausible``: the range ``(low, high)``
     the parameter takes in real rigs and tubes (None: no range is known), and
     ``plausible_source``: where that range comes from. The diagnosis does not name an effect
     whose fitted size falls outside it."""
@@ -219,11 +220,13 @@ class RadiusScaling(Effect):
     ``(r / r_ref)^D`` at the specimen radius ``r`` (``r_ref`` the fit's reference radius,
     so ``D`` does not move the pivots at the reference specimen). Per-pivot ``C_i`` is
     ``--form separate``. Acts on a :class:`jaxtube.SplineLaw` of the paper form.
+    Typical sizes: ``D_kappa = -3`` (the tension-field tube's wrinkling curvature
+    ``p / (2 E t)``, ``B = 1`` and no r), ``D_M`` small (its moments scale as ``p r^3``).
     """
 
     name: ClassVar[str] = "radius_scaling"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, 0.1),
+        EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, -3.0),
         EffectParameter("moment_radius_excess", "-", 0.0, -4.0, 4.0, 0.1))
     kind: ClassVar[str] = "model_structure"
     separated_by: ClassVar[tuple[str, ...]] = ("radius",)

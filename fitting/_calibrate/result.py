@@ -265,7 +265,7 @@ def _threshold(problem: FitProblem, name: str) -> float:
     """Standard error above which a fitted coordinate counts as not identified."""
     parameter = _effect_parameter(problem, name)
     if parameter is not None:
-        return 1e3 * parameter.typical
+        return 1e3 * abs(parameter.typical)
     return UNIDENTIFIED_SE if name.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
 
 

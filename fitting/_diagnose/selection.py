@@ -15,6 +15,11 @@ from .score import chi2, likelihood_ratio_p_value, parameter_names
 #: A competitor replaces an earlier addition when it lowers the BIC by more than this
 #: ("positive" evidence on the scale of Kass & Raftery 1995; it keeps near-ties from swapping).
 SWAP_BIC = 2.0
+#: A competitor of an earlier step is tried in the addition's place only when, at that
+#: step, its own refit lowered the BIC by at least this share of the addition's drop: one
+#: that explained less than half of it alone would have to explain the rest from nothing
+#: (each try is a whole refit).
+SWAP_SHORTLIST = 0.5
 
 
 def bound_count(problem, names) -> int:
@@ -28,28 +33,46 @@ def bound_count(problem, names) -> int:
     return count
 
 
+def _ended_on_a_bound(problem, names, refit) -> bool:
+    """Whether the refit failed or left some parameter of ``names`` on a bound: still on a
+    null that is a bound (where a projected step may have stalled), or pushed to the edge of
+    its box (a basin other than the physical one)."""
+    if refit is None:
+        return True
+    for name in names:
+        i = problem.names.index(name)
+        value = refit.vector[i]
+        if np.isclose(value, problem.lower[i]) or np.isclose(value, problem.upper[i]):
+            return True
+    return False
+
+
 def refit_candidate(problem, names, effect, fit_options):
-    """The refit with ``names`` freed, from the null and, when a parameter's null is on a
-    bound (where a projected step can stall: the first-order direction may point out of the
-    feasible set while the refit, with the pivots moving along, finds a large improvement
-    inside it), also from the effect's typical size; the better of the two. Returns
-    ``(refit or None, failure words)``."""
-    starts = [problem.base]
-    if bound_count(problem, names):
-        typical = np.array(problem.base, float)
-        for name, parameter in zip(names, effect.parameters):
-            i = problem.names.index(name)
-            typical[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
-        starts.append(typical)
+    """The refit with ``names`` freed, from the null and, when that refit ends with a
+    parameter on a bound, again from the effect's typical size; the better of the two.
+
+    On a bound means: still on a null that is a bound (a projected step can stall there:
+    the first-order direction may point out of the feasible set while the refit, with the
+    pivots moving along, finds a large improvement inside it), or at the far edge of the
+    parameter's box (the refit went into a basin other than the physical one, e.g. a radius
+    exponent at +4 where the tension-field tube has -3). A refit that ended inside the box
+    is not repeated (each start costs a whole refit). Returns ``(refit or None, failure
+    words)``."""
+    typical = np.array(problem.base, float)
+    for name, parameter in zip(names, effect.parameters):
+        i = problem.names.index(name)
+        typical[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
     best, failure = None, ""
-    for start in starts:
+    for start in (problem.base, typical):
         try:
             refit = fit_problem(problem.with_free(problem.free_names, start), fit_options)
         except FitError as error:  # reported as a failed candidate, never dropped silently
             failure = str(error)
-            continue
-        if best is None or chi2(refit) < chi2(best):
+            refit = None
+        if refit is not None and (best is None or chi2(refit) < chi2(best)):
             best = refit
+        if not _ended_on_a_bound(problem, names, best):
+            break
     return best, failure
 
 
@@ -127,9 +150,10 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
             in_model.remove(name)
             current = reduced
             continue
+        shortlist = SWAP_SHORTLIST * step.candidates[0].delta_bic
         rivals = [row for row in step.candidates
                   if row.significant and row.effect != name and row.effect not in in_model
-                  and row.effect not in removed]
+                  and row.effect not in removed and row.delta_bic <= shortlist]
         for rival in rivals:
             swapped = _without(current, effect, by_name[rival.effect], held, polish)
             if swapped is None:
