@@ -87,6 +87,8 @@ def main() -> None:
         lines.append(line)
         print(line, flush=True)
         (RESULTS / "diagnose_designs" / f"{name}.txt").write_text(diagnosis.report() + "\n")
+        # Written after every design, so a run stopped part-way keeps the rows it finished.
+        (RESULTS / args.results).write_text("\n".join(lines) + "\n")
     lines.append("base/final/noise over floor: baseline RMSE, final RMSE and the model-free "
                  "noise estimate over the generating noise floor (designs.json); seconds "
                  "include compilation for the first dataset of each shape; evals: residual-and-"
