@@ -8,14 +8,14 @@ forces) in ``tests/data/effects/designs.json``. The paper scaling cannot follow 
 tension-field truth across radii, so ``radius_scaling`` (a model-structure extension) may join
 the verdict; no physical effect but the hidden one may.
 
-CI runs one design, the cheapest that proves the decision rule (README "Diagnosis"):
-``tf_reinforcement``, the issue's failure (a real effect whose score at the null is 0, found
-by the likelihood ratio on its refit); its 6 x 14 shape shares the compiled model of
+CI runs one design (README "Hidden-effect designs"): ``tf_reinforcement``, the issue's
+failing design (reinforcement's score is 0 at step 1 and 14.7 at step 2, where the
+likelihood ratio on its refit adds it); its 6 x 14 shape shares the compiled model of
 ``tests/test_diagnose_effects.py``. The other rules (blocked cross-validation and its
-validity check, plausible sizes, the boundary mixture) are tested on constructed inputs in
-``tests/test_diagnosis_rules.py``. All six designs, the four-curve control (its own
-compilation) included, run in ``experiments/diagnose_designs.py``
-(``experiments/results/diagnose_designs.txt``).
+validity check, plausible sizes, the boundary mixture, the second start of a refit) are
+tested on constructed inputs in ``tests/test_diagnosis_rules.py``. The other designs run in
+``experiments/diagnose_designs.py`` (``experiments/results/diagnose_designs.txt``); the
+four-curve control fails there (the README says why) and so has no test here.
 """
 
 import functools

@@ -101,7 +101,8 @@ def bic(result: FitResult, n_points: int) -> float:
 
 def _without(current: FitResult, drop, add, held, polish):
     """``current`` refitted with the effect ``drop`` back at its null values and the effect
-    ``add`` (or None) freed (two starts, as in the ranking); None if the refit failed."""
+    ``add`` (or None) freed (a second start when the first ends on a bound, as in the
+    ranking); None if the refit failed."""
     problem = current.problem
     vector = np.array(current.vector, float)
     dropped = parameter_names(drop)
