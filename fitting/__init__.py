@@ -32,28 +32,27 @@ from ._bench.scaling import (
     wall_stiffness_estimates,
 )
 from ._calibrate.fit import fit, fit_problem
-from ._calibrate.noise import NoiseEstimate, estimate_noise_with_error
+from ._calibrate.noise import NoiseEstimate, estimate_noise, estimate_noise_with_error
 from ._calibrate.parameters_file import load_law
 from ._calibrate.problem import (
     Convergence,
     FitError,
     FitOptions,
     Prior,
-    estimate_noise,
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
-from ._diagnose.ranking import (
-    CandidateRanking,
-    DiagnoseOptions,
-    Diagnosis,
-    DiagnosisStep,
-    default_candidates,
-    diagnose,
+from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
+from ._diagnose.ranking import CandidateRanking, DiagnoseOptions, default_candidates
+from ._diagnose.score import (
+    ScoreTest,
+    cross_validated_rmse,
+    likelihood_ratio_p_value,
+    score_test,
 )
-from ._diagnose.score import ScoreTest, cross_validated_rmse, score_test
+from ._diagnose.validation import CrossValidation, blocked_cross_validation
 from ._figures.plots import (
     before_after_figure,
     draw_ranking,
@@ -97,6 +96,7 @@ __all__ = [
     "ParameterEstimate", "PivotScaling", "Prior", "RigPrediction", "TubeModel",
     "batch_curves", "estimate_noise", "fit", "initial_vector", "load_law",
     "NoiseEstimate", "estimate_noise_with_error",
+    "CrossValidation", "blocked_cross_validation", "likelihood_ratio_p_value",
     "load_measurements", "make_problem", "reference_specimen", "wall_stiffness_estimates",
     "draw_ranking", "draw_rmse_per_curve",
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",

@@ -8,8 +8,7 @@ writes ``tests/data/effects/designs.json``; ``experiments/noise_floors.py`` writ
 ``tests/data/noise_floors.json`` for the datasets made before). No JAX compilation here.
 
 :func:`fitting.estimate_noise_with_error` is the higher-order estimator of issue 16; the
-diagnosis and the fit still use :func:`fitting.estimate_noise` (three-point differences)
-until the rest of issue 16 lands.
+diagnosis and the fit use it (:func:`fitting.estimate_noise` is its value).
 """
 
 import json
@@ -32,6 +31,7 @@ def test_noise_estimate_within_a_quarter_of_the_generating_floor(path):
     estimate = ft.estimate_noise_with_error(data)
     assert abs(estimate.noise_N / FLOORS[path] - 1) <= 0.25, (estimate, FLOORS[path])
     assert 0 < estimate.standard_error_N < 0.25 * estimate.noise_N
+    assert ft.estimate_noise(data) == estimate.noise_N  # what the fit and diagnosis use
 
 
 def test_noise_estimate_is_unbiased_on_a_bending_curve_and_its_error_is_right():

@@ -43,7 +43,12 @@ import jaxtube as jt
 @dataclasses.dataclass(frozen=True)
 class EffectParameter:
     """One effect parameter: ``name`` (the field), ``unit``, ``null`` (effect vanishes),
-    ``lower``/``upper`` bounds and a ``typical`` magnitude (a scale for the optimiser)."""
+    ``lower``/``upper`` bounds and a ``typical`` value (a physically typical size: where
+    :func:`fitting.fit` starts the parameter, the diagnosis' second starting point, and by
+    its magnitude a scale); ``plausible``: the range ``(low, high)``
+    the parameter takes in real rigs and tubes (None: no range is known), and
+    ``plausible_source``: where that range comes from. The diagnosis does not name an effect
+    whose fitted size falls outside it."""
 
     name: str
     unit: str
@@ -51,6 +56,8 @@ class EffectParameter:
     lower: float
     upper: float
     typical: float
+    plausible: tuple[float, float] | None = None
+    plausible_source: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,7 +131,11 @@ class Reinforcement(Effect):
 
     name: ClassVar[str] = "reinforcement"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("stiffness", "N m^2", 0.0, 0.0, 1e4, 10.0),)
+        EffectParameter(
+            "stiffness", "N m^2", 0.0, 0.0, 1e4, 10.0, plausible=(0.0, 500.0),
+            plausible_source="a seam or tape strip of width w at the extreme fibre adds "
+            "about 2 E t w r^2: 1-100 N m^2 for fabric E t ~ 150 kN/m, w = 1-5 cm and "
+            "r = 50-150 mm; 500 N m^2 would be a stiff batten, not a seam"),)
     separated_by: ClassVar[tuple[str, ...]] = ("pressure", "radius")
     signature: ClassVar[str] = ("stiffness that does not grow with p r^3: relatively larger at "
                                 "low pressure and small radius, delays wrinkling")
@@ -141,7 +152,11 @@ class SelfWeight(Effect):
 
     name: ClassVar[str] = "self_weight"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("mass_per_length", "kg/m", 0.0, 0.0, 50.0, 0.3),)
+        EffectParameter(
+            "mass_per_length", "kg/m", 0.0, 0.0, 50.0, 0.3, plausible=(0.0, 1.5),
+            plausible_source="kite leading-edge tubes and struts weigh about 0.05-0.5 kg/m "
+            "(fabric ~ 0.1-0.2 kg/m^2 over 2 pi r plus bladder and seams); coated "
+            "inflatable-beam fabrics (~ 0.5-1 kg/m^2) reach about 1.5 kg/m at r = 0.2 m"),)
     separated_by: ClassVar[tuple[str, ...]] = ("length", "pressure")
     signature: ClassVar[str] = ("a root moment w g L^2 / 2 already there at zero load: early "
                                 "wrinkling of long, low-pressure tubes")
@@ -157,7 +172,11 @@ class ClampCompliance(Effect):
 
     name: ClassVar[str] = "clamp_compliance"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("compliance", "rad/(N m)", 0.0, 0.0, 1.0, 1e-4),)
+        EffectParameter(
+            "compliance", "rad/(N m)", 0.0, 0.0, 1.0, 1e-4, plausible=(0.0, 5e-3),
+            plausible_source="bench clamps of inflated tubes (a collar or strap around the "
+            "fabric) rotate by well under a degree per 10 N m: rotational stiffness above "
+            "about 200 N m/rad"),)
     features: ClassVar[frozenset[str]] = frozenset({"clamp_spring"})
     separated_by: ClassVar[tuple[str, ...]] = ("length",)
     signature: ClassVar[str] = ("a deflection c P L^2 that grows like L^2, not L^3, and stays "
@@ -173,7 +192,11 @@ class Shear(Effect):
 
     name: ClassVar[str] = "shear"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("flexibility", "m/N", 0.0, 0.0, 1.0, 1e-4),)
+        EffectParameter(
+            "flexibility", "m/N", 0.0, 0.0, 1.0, 1e-4, plausible=(0.0, 1e-3),
+            plausible_source="u = 1 / (2 pi k G t) with k ~ 0.5 and woven-fabric in-plane "
+            "shear stiffness G t of about 0.3-100 kN/m (bias-free woven cloth is soft in "
+            "shear; coated airbeam fabrics are stiffer)"),)
     features: ClassVar[frozenset[str]] = frozenset({"shear"})
     separated_by: ClassVar[tuple[str, ...]] = ("length", "pressure")
     signature: ClassVar[str] = ("a compliance L / (p pi r^2 + k G A) that grows like L, not "
@@ -197,11 +220,13 @@ class RadiusScaling(Effect):
     ``(r / r_ref)^D`` at the specimen radius ``r`` (``r_ref`` the fit's reference radius,
     so ``D`` does not move the pivots at the reference specimen). Per-pivot ``C_i`` is
     ``--form separate``. Acts on a :class:`jaxtube.SplineLaw` of the paper form.
+    Typical sizes: ``D_kappa = -3`` (the tension-field tube's wrinkling curvature
+    ``p / (2 E t)``, ``B = 1`` and no r), ``D_M`` small (its moments scale as ``p r^3``).
     """
 
     name: ClassVar[str] = "radius_scaling"
     parameters: ClassVar[tuple[EffectParameter, ...]] = (
-        EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, 0.1),
+        EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, -3.0),
         EffectParameter("moment_radius_excess", "-", 0.0, -4.0, 4.0, 0.1))
     kind: ClassVar[str] = "model_structure"
     separated_by: ClassVar[tuple[str, ...]] = ("radius",)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -27,11 +28,72 @@ def fit(data: MeasuredData, scaling: PivotScaling | None = None,
         initial: np.ndarray | None = None, effects: tuple = ()):
     """Fit the pivot scaling (and the parameters of ``effects``, :class:`fitting.Effect`
     subclasses) to every curve of ``data`` at once; returns a :class:`fitting.FitResult`
-    (estimates, uncertainties, identifiability, RMSE, report)."""
+    (estimates, uncertainties, identifiability, RMSE, report).
+
+    The effects' free parameters start at their typical size, not at their null: a null on a
+    bound (a stiffness, a compliance, a mass cannot be negative) stalls projected steps. With
+    ``options.hold_undetermined`` (default) the coordinates the optimum leaves undetermined
+    (infinite standard error: the data do not see them, so the optimiser only drifts along
+    them) are held at the physics-based first guess, effects at their null, and the rest is
+    refitted from the optimum; ``convergence.held`` and the identifiability sentences say
+    which (the diagnosis holds them in the same way)."""
     options = options or FitOptions()
     _check_options(options)
     problem = make_problem(data, scaling, rig, options, initial, effects)
-    return fit_problem(problem, options)
+    guess = np.array(problem.base, float)  # the physics-based first guess, effects at null
+    start = np.array(guess)
+    for effect in problem.effects:
+        for parameter in effect.parameters:
+            name = f"{effect.name}.{parameter.name}"
+            i = problem.names.index(name)
+            if name not in options.fixed:
+                start[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
+    result = fit_problem(dataclasses.replace(problem, base=start), options)
+    if options.hold_undetermined:
+        result = _hold_undetermined(result, guess, options)
+    return result
+
+
+#: Rounds of holding: the refit after holding may leave another coordinate undetermined.
+HOLD_ROUNDS = 2
+
+
+def _hold_undetermined(result: FitResult, guess: np.ndarray, options: FitOptions) -> FitResult:
+    """Hold the coordinates ``result`` leaves undetermined at ``guess`` and refit the rest
+    from the optimum (:func:`fit`); unchanged when every or no coordinate is undetermined."""
+    problem = result.problem
+    held: list[str] = []
+    why = result.identifiability  # the first fit's words on what the data do not determine
+    for _ in range(HOLD_ROUNDS):
+        undetermined = [name for name, se in zip(result.problem.free_names,
+                                                 result.free_standard_errors)
+                        if not math.isfinite(se)]
+        if not undetermined or len(undetermined) == len(result.problem.free_names):
+            break
+        held += undetermined
+        vector = np.array(result.vector, float)
+        for name in undetermined:
+            vector[problem.names.index(name)] = guess[problem.names.index(name)]
+        kept = [n for n in result.problem.free_names if n not in undetermined]
+        seconds, iterations = result.convergence.seconds, result.convergence.iterations
+        evaluations = result.convergence.evaluations
+        result = fit_problem(result.problem.with_free(kept, vector), options)
+        convergence = dataclasses.replace(
+            result.convergence, held=tuple(held),
+            seconds=result.convergence.seconds + seconds,
+            iterations=result.convergence.iterations + iterations,
+            evaluations=result.convergence.evaluations + evaluations,
+            solver_calls=(result.convergence.evaluations + evaluations) * len(problem.data))
+        words = (f"Held at the physics-based first guess (effects at their null value): "
+                 f"{', '.join(held)}; the data do not determine them, so a fit would only "
+                 "drift along them.",) + tuple(why)
+        parameters = tuple(
+            dataclasses.replace(p, standard_error=math.inf, fixed=False, identified=False)
+            if p.name in held else p for p in result.parameters)
+        result = dataclasses.replace(
+            result, convergence=convergence, parameters=parameters,
+            identifiability=words + tuple(w for w in result.identifiability if w not in why))
+    return result
 
 
 def _check_options(options: FitOptions) -> None:

@@ -94,3 +94,13 @@ def estimate_noise_with_error(curves, order: int = DEFAULT_ORDER) -> NoiseEstima
     sigma = math.sqrt(total / count)
     return NoiseEstimate(noise_N=sigma, standard_error_N=sigma * math.sqrt(trace / 2) / count,
                          pseudo_residuals=count, order=order)
+
+
+def estimate_noise(data) -> float:
+    """Pooled force noise standard deviation [N] of ``data`` (:class:`fitting.MeasuredData`),
+    model-free: :func:`estimate_noise_with_error` (its value only)."""
+    estimate = estimate_noise_with_error(data)
+    if estimate is None:
+        raise ValueError(f"{data.source}: too few points per curve to estimate the noise "
+                         "(at least three are needed); give it")
+    return estimate.noise_N

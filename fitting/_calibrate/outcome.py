@@ -14,9 +14,12 @@ class FitOutcome(jt.RESULTS):
     step_small = "step below tolerance"
     decrease_small = "decrease of the loss below tolerance"
     iterations_exhausted = "maximum number of iterations reached"
+    stagnated = ("the loss stagnated: chi^2 fell by less than stall_chi2 over the last "
+                 "stall_window iterations (statistically nothing)")
 
 
 def ending(outcome) -> tuple[str, bool]:
     """``(message, converged)`` of a :class:`FitOutcome` item: every ending but the
-    iteration cap is convergence."""
+    iteration cap is convergence (stagnation is: chi^2 no longer changes by a statistically
+    meaningful amount)."""
     return FitOutcome[outcome], bool(outcome != FitOutcome.iterations_exhausted)

@@ -23,9 +23,13 @@ the data cannot identify are found from the scaled information matrix and flagge
 Prediction bands: ``Var F(u) = g^T Cov g`` with ``g = dF/dtheta``, one JVP per fitted
 coordinate through the solve (the delta method).
 
-Noise estimate (when not given): the difference-based estimator of Gasser, Sroka &
-Jennen-Steinmetz (Biometrika 1986) on each curve ordered by deflection, pooled over curves;
-it is unbiased for a locally linear curve and needs no model.
+Noise estimate (when not given): model-free differences that annihilate local quadratics on
+each curve's unequally spaced deflections, pooled over curves (:mod:`fitting._calibrate.noise`).
+
+Stopping: besides the classical rules, a stagnation rule: when chi^2 (noise units) fell by
+less than ``stall_chi2`` over the last ``stall_window`` accepted iterations, the fit has
+converged in the statistical sense (a change of chi^2 by 1 is one standard deviation of one
+parameter) and only drifts along directions the data hardly determine.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ import numpy as np
 from .._bench.rig import CantileverRig, CurveBatch, TubeModel, batch_curves, unpad
 from .._bench.scaling import PivotScaling, initial_vector, reference_specimen
 from .._data import MeasuredData
+from .noise import estimate_noise
 from .outcome import FitOutcome, ending
 
 # Default bounds of the exponents B and C (physics: 0 to 3 for p^B r^C; generous), and of
@@ -59,32 +64,6 @@ STRONG_CORRELATION = 0.98
 
 class FitError(RuntimeError):
     """The calibration could not start or the equilibrium solves failed."""
-
-
-def estimate_noise(data: MeasuredData) -> float:
-    """Pooled force noise standard deviation [N] (Gasser-Sroka-Jennen-Steinmetz).
-
-    For three consecutive points (ordered by deflection) the pseudo-residual
-    ``e = a y_{i-1} + b y_{i+1} - y_i`` with ``a, b`` the linear-interpolation weights has
-    variance ``(a^2 + b^2 + 1) sigma^2`` when the curve is locally linear.
-    """
-    total, count = 0.0, 0
-    for curve in data:
-        order = np.argsort(curve.deflection, kind="stable")
-        x, y = curve.deflection[order], curve.force[order]
-        if x.size < 3:
-            continue
-        x0, x1, x2 = x[:-2], x[1:-1], x[2:]
-        span = x2 - x0
-        ok = span > 0
-        a = np.where(ok, (x2 - x1) / np.where(ok, span, 1.0), 0.5)
-        b = 1.0 - a
-        e = a * y[:-2] + b * y[2:] - y[1:-1]
-        total += float(np.sum(e**2 / (a**2 + b**2 + 1.0)))
-        count += e.size
-    if count == 0:
-        raise ValueError(f"{data.source}: too few points to estimate the noise; give it")
-    return math.sqrt(total / count)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +89,11 @@ class FitOptions:
         multistart: number of starts (1 = the physics-based guess only).
         max_iterations, ftol, gtol, chi2_tol: Levenberg-Marquardt stopping rules (relative
             loss decrease, gradient, and absolute decrease of chi^2 in noise units).
+        stall_chi2, stall_window: stagnation: stop (converged) when chi^2 in noise units fell
+            by less than ``stall_chi2`` over the last ``stall_window`` iterations.
+        hold_undetermined: :func:`fitting.fit` holds the coordinates the data do not
+            determine (infinite standard error) at the physics-based first guess and refits
+            the rest (as the diagnosis does); the result says which.
         seed: of the multi-start perturbations.
         progress: show a progress bar.
     """
@@ -125,6 +109,9 @@ class FitOptions:
     ftol: float = 1e-6
     chi2_tol: float = 1e-3
     gtol: float = 1e-8
+    stall_chi2: float = 1.0
+    stall_window: int = 5
+    hold_undetermined: bool = True
     seed: int = 0
     progress: bool = True
 
@@ -141,6 +128,7 @@ class Convergence:
     seconds: float
     starts: int
     start_costs: tuple[float, ...]
+    held: tuple[str, ...] = ()  # coordinates held at the first guess (not determined)
 
 
 # --------------------------------------------------------------------------------------------
@@ -390,6 +378,7 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
     nu = 2.0
     outcome = FitOutcome.iterations_exhausted
     iteration = 0
+    history = [2.0 * cost]  # chi^2 after each accepted iteration (stagnation rule)
     for iteration in range(1, options.max_iterations + 1):
         g = jac.T @ r
         if float(np.max(np.abs(g))) <= options.gtol * max(1.0, cost):
@@ -435,6 +424,11 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         negligible = 2.0 * (cost_before - cost) <= options.chi2_tol
         if relative_change <= options.ftol or small_step or negligible:
             outcome = (FitOutcome.step_small if small_step else FitOutcome.decrease_small)
+            break
+        history.append(2.0 * cost)
+        window = options.stall_window
+        if len(history) > window and history[-window - 1] - history[-1] < options.stall_chi2:
+            outcome = FitOutcome.stagnated
             break
     message, converged = ending(outcome)
     return x, cost, dict(message=message, converged=converged, iterations=iteration,

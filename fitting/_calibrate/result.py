@@ -243,6 +243,8 @@ class FitResult:
         for p in self.parameters:
             if p.fixed:
                 se, status = "", "fixed"
+            elif p.name in self.convergence.held:
+                se, status = "--", "HELD (not determined by the data)"
             elif not p.identified:
                 se, status = "--", "NOT IDENTIFIED"
             else:
@@ -263,7 +265,7 @@ def _threshold(problem: FitProblem, name: str) -> float:
     """Standard error above which a fitted coordinate counts as not identified."""
     parameter = _effect_parameter(problem, name)
     if parameter is not None:
-        return 1e3 * parameter.typical
+        return 1e3 * abs(parameter.typical)
     return UNIDENTIFIED_SE if name.endswith(".A") else UNIDENTIFIED_SE_EXPONENT
 
 

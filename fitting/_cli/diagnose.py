@@ -37,7 +37,8 @@ from .._bench.effects import resolve_effect
 from .._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from .._bench.scaling import PivotScaling
 from .._calibrate.problem import FitError
-from .._diagnose import ranking as _diagnose
+from .._diagnose.diagnosis import diagnose
+from .._diagnose.ranking import DiagnoseOptions, default_candidates
 from .._diagnose.report import diagnosis_report
 from .._figures.plots import before_after_figure, fit_figure, ranking_figure, where_it_fails_figure
 from .._json import write_json
@@ -113,7 +114,7 @@ def run_diagnose(args) -> int:
     try:
         scaling = PivotScaling(pivots_per_regime=args.pivots)
         user = tuple(resolve_effect(text) for text in args.effect)
-        candidates = _diagnose.default_candidates(scaling, user)
+        candidates = default_candidates(scaling, user)
         if args.candidates:
             wanted = [name.strip() for name in args.candidates.split(",") if name.strip()]
             known = {c.name: c for c in candidates}
@@ -122,15 +123,15 @@ def run_diagnose(args) -> int:
                 raise ValueError(f"--candidates: unknown {unknown}; expected names from "
                                  f"{sorted(known)}")
             candidates = tuple(known[name] for name in wanted)
-        options = _diagnose.DiagnoseOptions(noise_N=args.noise_N,
-                                            max_additions=args.max_additions,
-                                            progress=not args.quiet)
+        options = DiagnoseOptions(noise_N=args.noise_N,
+                                  max_additions=args.max_additions,
+                                  progress=not args.quiet)
         rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
         print(f"diagnosing {len(data)} curves ({data.point_count} points) from {args.data}; "
               f"candidates: {', '.join(c.name for c in candidates)}; compiling the model "
               "(the first evaluation takes a while) ...", file=sys.stderr, flush=True)
-        diagnosis = _diagnose.diagnose(data, scaling=scaling, rig=rig, options=options,
-                                       candidates=candidates)
+        diagnosis = diagnose(data, scaling=scaling, rig=rig, options=options,
+                             candidates=candidates)
     except (ValueError, FitError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

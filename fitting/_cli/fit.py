@@ -38,10 +38,12 @@ from .._bench.effects import resolve_effect
 from .._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from .._bench.scaling import FORMS, PivotScaling
 from .._calibrate.fit import fit
+from .._calibrate.noise import estimate_noise_with_error
 from .._calibrate.parameters_file import load_law, predict_from_document
 from .._calibrate.problem import FitError, FitOptions, Prior
 from .._calibrate.result import Z_95
 from .._data.units import MM_PER_M
+from .._diagnose.verdict import noise_words
 from .._figures.plots import fit_figure, prediction_figure
 from .._json import write_json
 from .common import (
@@ -171,9 +173,9 @@ def fit_report(result) -> str:
         lines.append(f"{row['curve']:<16}{row['rmse_N']:>10.4g}{row['max_error_N']:>15.4g}"
                      f"{row['bias_N']:>10.4g}")
     lines.append(f"{'overall':<16}{result.rmse:>10.4g}")
-    source = "given" if result.problem.noise_given else "estimated from the data"
-    lines.append(f"noise {result.noise:.4g} N ({source}); residual variance / noise variance "
-                 f"{result.residual_variance:.3g}")
+    estimate = None if result.problem.noise_given else estimate_noise_with_error(
+        result.problem.data)
+    lines.append(noise_words(result.noise, estimate, result))
     c = result.convergence
     lines.append(f"optimiser: {'converged' if c.converged else 'NOT CONVERGED'} ({c.message}); "
                  f"{c.iterations} iterations, {c.evaluations} evaluations, {c.solver_calls} "

@@ -7,10 +7,12 @@ from .._data.units import MM_PER_M
 
 
 def _ranking_lines(rows) -> list[str]:
-    lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'RMSE [N]':>10}{'ΔBIC':>10}"
-             f"{'CV RMSE [N]':>13}{'unabsorbed':>12}  significant"]
+    lines = [f"  {'candidate':<20}{'score S':>10}{'p':>10}{'LR':>10}{'p (LR)':>10}"
+             f"{'RMSE [N]':>10}{'ΔBIC':>10}{'CV RMSE [N]':>13}{'unabsorbed':>12}  significant"
+             " (the likelihood ratio decides; the score only orders the refits)"]
     for row in rows:
         lines.append(f"  {row.effect:<20}{row.score_statistic:>10.3g}{row.score_p_value:>10.2g}"
+                     f"{row.lr_statistic:>10.3g}{row.lr_p_value:>10.2g}"
                      f"{row.rmse_N:>10.4g}{row.delta_bic:>10.1f}{row.cv_rmse_N:>13.4g}"
                      f"{row.unabsorbed_share:>12.1%}  "
                      + ("yes" if row.significant else "no: " + "; ".join(row.reasons)))
@@ -21,7 +23,9 @@ def diagnosis_report(diagnosis) -> str:
     """The before/after table, the rankings, where the baseline fails and the verdict."""
     lines = []
     base = diagnosis.baseline_comparison
-    source = "given" if diagnosis.noise_given else "estimated from the data, model-free"
+    estimate = diagnosis.noise_estimate
+    source = "given" if estimate is None else (
+        f"estimated from the data, model-free: +- {estimate.standard_error_N:.2g} N")
     lines.append(f"noise: {diagnosis.noise:.4g} N ({source})")
     lines.append("(unabsorbed: the share of a candidate's effect on the curves that refitting "
                  "the current model's parameters cannot reproduce)")
@@ -35,6 +39,7 @@ def diagnosis_report(diagnosis) -> str:
         lines.append(f"step {k + 1}: candidates against the current model, best first -> "
                      f"add {step.added}")
         lines += _ranking_lines(step.candidates)
+        lines += ["  " + words for words in step.backward]
     if diagnosis.final_candidates:
         lines.append("")
         lines.append(f"final ranking ({diagnosis.stop_reason}):")
@@ -43,10 +48,9 @@ def diagnosis_report(diagnosis) -> str:
     lines.append(f"{'model':<34}{'RMSE [N]':>10}{'max |err| [N]':>15}{'bias [N]':>10}"
                  f"{'CV RMSE [N]':>13}  residuals")
     models = [("baseline", diagnosis.baseline_comparison, diagnosis.baseline_cv_rmse_N)]
-    added = []
     for step in diagnosis.steps:
-        added.append(step.added)
-        models.append(("+ " + " + ".join(added), step.comparison, step.candidates[0].cv_rmse_N))
+        models.append(("+ " + " + ".join(step.in_model), step.comparison,
+                       step.candidates[0].cv_rmse_N))
     for label, comparison, cv in models:
         lines.append(f"{label:<34}{comparison.rmse_N:>10.4g}{comparison.max_error_N:>15.4g}"
                      f"{comparison.bias_N:>10.3g}{cv:>13.4g}  "

@@ -1,5 +1,6 @@
 """Statistics of candidate effects at a fitted model: the score test at the null, chi^2,
-the linearised leave-one-curve-out error, and how much of a candidate's effect the model's
+the likelihood-ratio p-value (with the boundary mixture), the linearised leave-one-curve-out
+error, and how much of a candidate's effect the model's
 fitted parameters can absorb (formulas and sources in :mod:`fitting._diagnose.ranking`).
 
 All work on the residuals and the Jacobian of a fit's last evaluation (``FitResult.residual``
@@ -87,6 +88,30 @@ def chi2(result: FitResult) -> float:
 
 def point_count(result: FitResult) -> int:
     return int(np.sum(result.problem.batch.weight > 0))
+
+
+def likelihood_ratio_p_value(statistic: float, dof: int, at_bound: int) -> float:
+    """p-value of the likelihood-ratio statistic ``LR = chi^2_null - chi^2_refit`` (noise
+    units) for freeing ``dof`` coordinates of which ``at_bound`` have their null value on a
+    bound of the feasible set.
+
+    A parameter whose null is on the boundary makes the limit distribution a mixture (Chernoff,
+    Ann. Math. Stat. 25, 1954; Self & Liang, JASA 82, 1987): for one such parameter
+    ``0.5 chi^2_0 + 0.5 chi^2_1``; for ``b`` of them (taken as orthogonal) and ``dof - b``
+    interior ones, ``sum_k C(b, k) 2^-b chi^2_{dof - b + k}`` (``chi^2_0`` a point mass at 0).
+    """
+    if not 0 <= at_bound <= dof:
+        raise ValueError(f"at_bound must be within 0..{dof}, got {at_bound}")
+    statistic = max(float(statistic), 0.0)
+    interior = dof - at_bound
+    total = 0.0
+    for k in range(at_bound + 1):
+        weight = math.comb(at_bound, k) / 2**at_bound
+        df = interior + k
+        tail = (1.0 if statistic <= 0 else 0.0) if df == 0 else float(
+            scipy.stats.chi2.sf(statistic, df))
+        total += weight * tail
+    return min(total, 1.0)
 
 
 def cross_validated_rmse(result: FitResult) -> float:

@@ -1,0 +1,101 @@
+"""The diagnosis on every hidden-effect design of issue 16 (``tests/data/effects/tf_*.csv``):
+verdict, final RMSE against the generating noise floor, the noise estimate against that
+floor, and seconds (cold: the first dataset of a shape compiles the model).
+
+Pass criteria (issue 16): the verdict contains the hidden effect and no other physical
+effect (``radius_scaling`` may join: the truth is a tension-field tube whose wrinkling
+curvature does not scale with r); a control has no physical effect; the final RMSE is within
+1.3x the generating floor. Writes ``experiments/results/diagnose_designs.txt`` and the
+reports next to it (``diagnose_designs/<name>.txt``).
+
+    python experiments/diagnose_designs.py                 # all designs
+    python experiments/diagnose_designs.py --only tf_shear tf_none_four_curves
+"""
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import fitting as ft
+from fitting._calibrate import problem as _problem
+
+_EVALUATIONS = [0]
+_original = _problem._residuals_and_jacobian
+
+
+def _counted(*args, **kwargs):
+    """The fit's residual-and-Jacobian function, counted (a load-independent cost)."""
+    _EVALUATIONS[0] += 1
+    return _original(*args, **kwargs)
+
+
+_problem._residuals_and_jacobian = _counted
+
+ROOT = Path(__file__).resolve().parents[1]
+EFFECTS = ROOT / "tests" / "data" / "effects"
+DESIGNS = json.loads((EFFECTS / "designs.json").read_text())
+HIDDEN = {"tf_reinforcement": "reinforcement", "tf_clamp_compliance": "clamp_compliance",
+          "tf_self_weight": "self_weight", "tf_shear": "shear", "tf_none_one_radius": None,
+          "tf_none_four_curves": None}
+RESULTS = ROOT / "experiments" / "results"
+
+
+def judge(name: str, diagnosis) -> tuple[bool, str]:
+    """Pass or fail under the issue's criteria, and why in words."""
+    hidden = HIDDEN[name]
+    floor = DESIGNS[name]["noise_floor_N"]
+    physical = [e for e in diagnosis.verdict if e in ft.BUILT_IN_EFFECTS]
+    expected = [hidden] if hidden else []
+    ratio = diagnosis.final.rmse / floor
+    why = []
+    if physical != expected:
+        why.append(f"physical effects {physical}, expected {expected}")
+    if not set(diagnosis.verdict) <= set(expected) | {"radius_scaling"}:
+        why.append(f"verdict {list(diagnosis.verdict)}")
+    if ratio > 1.3:
+        why.append(f"RMSE {ratio:.2f}x the floor")
+    return not why, "; ".join(why)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="*", default=list(HIDDEN))
+    parser.add_argument("--results", default="diagnose_designs.txt",
+                        help="file name under experiments/results")
+    parser.add_argument("--progress", action="store_true",
+                        help="show the diagnosis' progress bar (which fit it is on)")
+    args = parser.parse_args()
+    (RESULTS / "diagnose_designs").mkdir(parents=True, exist_ok=True)
+    lines = [f"diagnose_designs.py, {time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} CPUs, "
+             f"load average {os.getloadavg()[0]:.2f} at start",
+             f"{'dataset':<22}{'hidden':<18}{'verdict':<34}{'base/floor':>11}"
+             f"{'final/floor':>12}{'noise/floor':>12}{'seconds':>9}{'evals':>7}  result"]
+    print(lines[0], flush=True)
+    for name in args.only:
+        data = ft.load_measurements(EFFECTS / f"{name}.csv")
+        t0, _EVALUATIONS[0] = time.perf_counter(), 0
+        diagnosis = ft.diagnose(data, options=ft.DiagnoseOptions(progress=args.progress))
+        seconds = time.perf_counter() - t0
+        floor = DESIGNS[name]["noise_floor_N"]
+        ok, why = judge(name, diagnosis)
+        line = (f"{name:<22}{HIDDEN[name] or '-':<18}{', '.join(diagnosis.verdict) or '-':<34}"
+                f"{diagnosis.baseline.rmse / floor:>11.2f}{diagnosis.final.rmse / floor:>12.2f}"
+                f"{diagnosis.noise / floor:>12.2f}{seconds:>9.1f}{_EVALUATIONS[0]:>7}  "
+                + ("pass" if ok else "FAIL: " + why))
+        lines.append(line)
+        print(line, flush=True)
+        (RESULTS / "diagnose_designs" / f"{name}.txt").write_text(diagnosis.report() + "\n")
+        # Written after every design, so a run stopped part-way keeps the rows it finished.
+        (RESULTS / args.results).write_text("\n".join(lines) + "\n")
+    lines.append("base/final/noise over floor: baseline RMSE, final RMSE and the model-free "
+                 "noise estimate over the generating noise floor (designs.json); seconds "
+                 "include compilation for the first dataset of each shape; evals: residual-and-"
+                 "Jacobian evaluations of the whole diagnosis (every fit, every start)")
+    lines.append(f"load average {os.getloadavg()[0]:.2f} at the end")
+    (RESULTS / args.results).write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,179 @@
+"""Refits of the diagnosis that do not stall at the null, plausible sizes, and the backward /
+swap step after each addition (rules and sources in :mod:`fitting._diagnose.ranking`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._calibrate.fit import fit_problem
+from .._calibrate.problem import FitError
+from .._calibrate.result import FitResult
+from .score import chi2, likelihood_ratio_p_value, parameter_names
+
+#: A competitor replaces an earlier addition when it lowers the BIC by more than this
+#: ("positive" evidence on the scale of Kass & Raftery 1995; it keeps near-ties from swapping).
+SWAP_BIC = 2.0
+#: A competitor of an earlier step is tried in the addition's place only when, at that
+#: step, its own refit lowered the BIC by at least this share of the addition's drop: one
+#: that explained less than half of it alone would have to explain the rest from nothing
+#: (each try is a whole refit).
+SWAP_SHORTLIST = 0.5
+
+
+def bound_count(problem, names) -> int:
+    """How many of ``names`` have their null value (their value in ``problem.base``) on a
+    bound: those make the likelihood-ratio test a boundary mixture."""
+    count = 0
+    for name in names:
+        i = problem.names.index(name)
+        value = problem.base[i]
+        count += bool(np.isclose(value, problem.lower[i]) or np.isclose(value, problem.upper[i]))
+    return count
+
+
+def _ended_on_a_bound(problem, names, refit) -> bool:
+    """Whether the refit failed or left some parameter of ``names`` on a bound: still on a
+    null that is a bound (where a projected step may have stalled), or pushed to the edge of
+    its box (a basin other than the physical one)."""
+    if refit is None:
+        return True
+    for name in names:
+        i = problem.names.index(name)
+        value = refit.vector[i]
+        if np.isclose(value, problem.lower[i]) or np.isclose(value, problem.upper[i]):
+            return True
+    return False
+
+
+def refit_candidate(problem, names, effect, fit_options):
+    """The refit with ``names`` freed, from the null and, when that refit ends with a
+    parameter on a bound, again from the effect's typical size; the better of the two.
+
+    On a bound means: still on a null that is a bound (a projected step can stall there:
+    the first-order direction may point out of the feasible set while the refit, with the
+    pivots moving along, finds a large improvement inside it), or at the far edge of the
+    parameter's box (the refit went into a basin other than the physical one, e.g. a radius
+    exponent at +4 where the tension-field tube has -3). A refit that ended inside the box
+    is not repeated (each start costs a whole refit). Returns ``(refit or None, failure
+    words)``."""
+    typical = np.array(problem.base, float)
+    for name, parameter in zip(names, effect.parameters):
+        i = problem.names.index(name)
+        typical[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
+    best, failure = None, ""
+    for start in (problem.base, typical):
+        try:
+            refit = fit_problem(problem.with_free(problem.free_names, start), fit_options)
+        except FitError as error:  # reported as a failed candidate, never dropped silently
+            failure = str(error)
+            refit = None
+        if refit is not None and (best is None or chi2(refit) < chi2(best)):
+            best = refit
+        if not _ended_on_a_bound(problem, names, best):
+            break
+    return best, failure
+
+
+def implausible_words(effect, names, estimates) -> list[str]:
+    """Sentences for the parameters whose fitted size is outside the effect's plausible
+    range (:class:`fitting.EffectParameter` ``plausible``)."""
+    words = []
+    for name, parameter in zip(names, effect.parameters):
+        if parameter.plausible is None:
+            continue
+        low, high = parameter.plausible
+        value = estimates[name]
+        if not low <= value <= high:
+            words.append(
+                f"{effect.name} explains it only at {parameter.name} = {value:.3g} "
+                f"{parameter.unit}, outside the plausible {low:.3g}-{high:.3g} "
+                f"{parameter.unit} ({parameter.plausible_source}); something else is likely "
+                "missing")
+    return words
+
+
+def bic(result: FitResult, n_points: int) -> float:
+    """``chi^2 + k ln n`` (Schwarz 1978) of a fit with ``k`` fitted coordinates."""
+    return chi2(result) + len(result.problem.free_index) * math.log(n_points)
+
+
+def _without(current: FitResult, drop, add, held, polish):
+    """``current`` refitted with the effect ``drop`` back at its null values and the effect
+    ``add`` (or None) freed (a second start when the first ends on a bound, as in the
+    ranking); None if the refit failed."""
+    problem = current.problem
+    vector = np.array(current.vector, float)
+    dropped = parameter_names(drop)
+    for name in dropped:
+        vector[problem.names.index(name)] = held[name]
+    free = [name for name in problem.free_names if name not in dropped]
+    if add is None:
+        try:
+            return fit_problem(problem.with_free(free, vector), polish)
+        except FitError:
+            return None
+    names = parameter_names(add)
+    refit, _ = refit_candidate(problem.with_free(free + list(names), vector), names, add,
+                               polish)
+    return refit
+
+
+def backward_step(current, in_model, steps, best, by_name, held, options, polish, n_points):
+    """After adding ``best`` (a ranking row): is each earlier addition still needed
+    (likelihood ratio and BIC of keeping it, given the rest), and would a competitor of its
+    own step (significant there, plausible, not in the model) now explain the data better in
+    its place (BIC lower by more than :data:`SWAP_BIC`)? ``in_model`` (names, in order) is
+    updated in place. Returns ``(model, removed names, words)``."""
+    words, removed = [], []
+    alpha = options.alpha / max(len(by_name), 1)
+    for step in steps:
+        name = step.added
+        if name not in in_model or name == best.effect:
+            continue
+        effect = by_name[name]
+        reduced = _without(current, effect, None, held, polish)
+        if reduced is None:
+            continue
+        q = len(effect.parameters)
+        ratio = max(chi2(reduced) - chi2(current), 0.0)
+        bounded = sum(bool(np.isclose(held[n], current.problem.lower[
+            current.problem.names.index(n)])) for n in parameter_names(effect))
+        p_value = likelihood_ratio_p_value(ratio, q, bounded)
+        keep_gain = ratio - q * math.log(n_points)
+        if not (p_value < alpha and keep_gain > options.bic_threshold):
+            words.append(
+                f"{name} (added at an earlier step) is removed: once {best.effect} is in, "
+                f"keeping it lowers chi^2 by only {ratio:.3g} (likelihood-ratio p = "
+                f"{p_value:.2g}, BIC gain {keep_gain:.1f}).")
+            removed.append(name)
+            in_model.remove(name)
+            current = reduced
+            continue
+        shortlist = SWAP_SHORTLIST * step.candidates[0].delta_bic
+        rivals = [row for row in step.candidates
+                  if row.significant and row.effect != name and row.effect not in in_model
+                  and row.effect not in removed and row.delta_bic <= shortlist]
+        for rival in rivals:
+            swapped = _without(current, effect, by_name[rival.effect], held, polish)
+            if swapped is None:
+                continue
+            rival_names = parameter_names(by_name[rival.effect])
+            estimates = {n: float(swapped.vector[swapped.problem.names.index(n)])
+                         for n in rival_names}
+            plausible = not implausible_words(by_name[rival.effect], rival_names, estimates)
+            gain = bic(current, n_points) - bic(swapped, n_points)
+            if plausible and gain > SWAP_BIC:
+                words.append(
+                    f"{name} (added at an earlier step) is swapped for {rival.effect}: with "
+                    f"{best.effect} in the model, {rival.effect} in its place lowers the BIC "
+                    f"by {gain:.1f} more.")
+                removed.append(name)
+                in_model[in_model.index(name)] = rival.effect
+                current = swapped
+                break
+            words.append(f"{name} is kept: {rival.effect} in its place does not do better "
+                         f"(BIC {-gain:+.1f}" + ("" if plausible else ", implausible size")
+                         + ").")
+    return current, removed, words

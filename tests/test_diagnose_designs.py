@@ -1,0 +1,93 @@
+"""The diagnosis on designs unlike the older tests (issue 16): a tension-field truth over
+several radii and pressures with one effect hidden, and controls with nothing hidden.
+
+Data: ``tests/data/effects/tf_*.csv``, made by the independent continuum solver
+(``experiments/make_hidden_effect_designs.py``; not jaxtube's chain), with each dataset's
+generating noise floor (the noise-free truth at the recorded deflections against the recorded
+forces) in ``tests/data/effects/designs.json``. The paper scaling cannot follow a
+tension-field truth across radii, so ``radius_scaling`` (a model-structure extension) may join
+the verdict; no physical effect but the hidden one may.
+
+CI runs one design (README "Hidden-effect designs"): ``tf_reinforcement``, the issue's
+failing design (reinforcement's score is 0 at step 1 and 14.7 at step 2, where the
+likelihood ratio on its refit adds it); its 6 x 14 shape shares the compiled model of
+``tests/test_diagnose_effects.py``. The other rules (blocked cross-validation and its
+validity check, plausible sizes, the boundary mixture, the second start of a refit) are
+tested on constructed inputs in ``tests/test_diagnosis_rules.py``. The other designs run in
+``experiments/diagnose_designs.py`` (``experiments/results/diagnose_designs.txt``); the
+four-curve control and ``tf_shear`` (right verdict, RMSE 1.38x the floor) fail there (the
+README says why) and so have no test here.
+"""
+
+import functools
+import json
+from pathlib import Path
+
+import pytest
+
+import fitting as ft
+
+EFFECTS = Path(__file__).parent / "data" / "effects"
+DESIGNS = json.loads((EFFECTS / "designs.json").read_text())
+FLOORS = json.loads((EFFECTS.parent / "noise_floors.json").read_text())
+
+
+@functools.cache
+def diagnosis_of(name: str) -> ft.Diagnosis:
+    data = ft.load_measurements(EFFECTS / f"{name}.csv")
+    return ft.diagnose(data, options=ft.DiagnoseOptions(progress=False))
+
+
+def floor(name: str) -> float:
+    return DESIGNS[name]["noise_floor_N"]
+
+
+def test_reinforcement_is_found_by_the_likelihood_ratio_on_its_refit():
+    """Six curves, 2 pressures x 3 radii, EI_r = 20 N m^2 hidden. The verdict is
+    reinforcement (with radius_scaling); its refit decided, whatever its score said."""
+    name = "tf_reinforcement"
+    diagnosis = diagnosis_of(name)
+    physical = [effect for effect in diagnosis.verdict if effect in ft.BUILT_IN_EFFECTS]
+    assert physical == ["reinforcement"], diagnosis.report()
+    assert set(diagnosis.verdict) <= {"reinforcement", "radius_scaling"}
+    assert diagnosis.baseline.rmse > 1.3 * floor(name)  # the baseline really misses
+    assert diagnosis.final.rmse <= 1.3 * floor(name), diagnosis.report()
+    for step in diagnosis.steps:
+        chosen = step.candidates[0]
+        assert chosen.significant and chosen.lr_p_value < 0.01 / len(step.candidates)
+        assert chosen.decided_by.startswith("added if best: likelihood ratio")
+    rejected = [row for step in diagnosis.steps for row in step.candidates[1:]
+                if not row.significant] + list(diagnosis.final_candidates)
+    assert rejected and all(row.decided_by.startswith("not added: ") for row in rejected)
+    words = " ".join(diagnosis.statements)
+    assert "likelihood-ratio test on the refit" in words and "orders the refits only" in words
+    assert "Noise " in words and "residual scatter" in words
+
+
+def test_noise_estimate_and_its_error_are_reported():
+    diagnosis = diagnosis_of("tf_reinforcement")
+    estimate = diagnosis.noise_estimate
+    assert estimate is not None and estimate.noise_N == diagnosis.noise
+    assert 0 < estimate.standard_error_N < 0.3 * estimate.noise_N
+    document = diagnosis.to_json()
+    assert document["noise_standard_error_N"] == pytest.approx(estimate.standard_error_N)
+
+
+def test_the_fit_with_the_hidden_effect_converges_by_itself():
+    """``fit`` with the effect the data hide (Fichter shear, continuum solver) converges on
+    its own to the generating floor: the effect starts at its typical size, undetermined
+    coordinates are held and named, stagnation ends the iterations. All candidates are
+    compiled in (the others fixed at their null), so the diagnosis' compiled model serves."""
+    path = "tests/data/effects/shear.csv"
+    data = ft.load_measurements(Path(__file__).parents[1] / path)
+    candidates = ft.default_candidates(ft.PivotScaling())
+    fixed = {f"{c.name}.{p.name}": p.null for c in candidates if c is not ft.Shear
+             for p in c.parameters}
+    result = ft.fit(data, effects=candidates, options=ft.FitOptions(fixed=fixed,
+                                                                     progress=False))
+    assert result.convergence.converged, result.convergence.message
+    assert result.rmse <= 1.3 * FLOORS[path]
+    if result.convergence.held:
+        assert result.identifiability[0].startswith("Held at the physics-based first guess")
+        assert all(n in result.identifiability[0] for n in result.convergence.held)
+        assert "HELD" in result.table()
