@@ -305,7 +305,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                 ls_cond, ls_body, (jnp.ones((), z.dtype), full_accepted,
                                    jnp.zeros((), jnp.int32)))
             finite = finite & jnp.all(jnp.isfinite(dz))
-            z_new = z + alpha * dz + jnp.where(full_accepted, 0.0, alpha**2) * correction
+            # (correction is zero when the full step was accepted)
+            z_new = z + alpha * dz + alpha**2 * correction
             return z_new, lam + alpha * (lam_new - lam), rho_new, accepted, finite
 
         def stay(_):
