@@ -64,7 +64,11 @@ from ._mechanics import configuration as configuration
 from ._mechanics import initial_state as initial_state
 from ._mechanics import reference_geometry as reference_geometry
 from ._mechanics import total_energy as total_energy
+from ._path import DrivenEquilibrium as DrivenEquilibrium
+from ._path import drive_to_dead_load as drive_to_dead_load
+from ._path import node_dead_load as node_dead_load
 from ._path import solve_path as solve_path
+from ._path import with_node_dead_load as with_node_dead_load
 from ._plot import deformed_shape_figure as deformed_shape_figure
 from ._plot import force_deflection_figure as force_deflection_figure
 from ._problems import Problem as Problem

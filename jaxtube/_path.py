@@ -1,5 +1,6 @@
 """Load paths: :func:`solve_path` steps through a :class:`ForceControl` or a
-:class:`DisplacementControl` inside ``jit``.
+:class:`DisplacementControl` inside ``jit``; :func:`drive_to_dead_load` reaches a dead
+load on one node through displacement control of that node.
 
 The path is a ``lax.scan`` over steps, each warm-started from the previous one; every step's
 solution carries its own convergence flag. Gradients w.r.t. the parameters come by the
@@ -8,8 +9,10 @@ implicit function theorem at every step.
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax import Array
 
 from ._controls import DisplacementControl, ForceControl, scale_loads
 from ._equilibrium import Solution, constraint_count, solve_load_level, tube_reference_geometry
@@ -53,3 +56,165 @@ def solve_path(
 
     _, sols = jax.lax.scan(step, (state0, lam0), path.load_factors)
     return sols
+
+
+class DrivenEquilibrium(eqx.Module):
+    """A dead load reached through displacement control (:func:`drive_to_dead_load`).
+
+    Attributes:
+        equilibrium: the :class:`Solution` under the dead load (a force-control solve from
+            the driven state; its ``converged`` is the solver's own verdict).
+        path: the displacement-controlled steps, leaves with a leading ``[K]`` axis
+            (``control_displacement`` [m], ``control_force`` [N], each step's convergence;
+            a refused step reports ``converged`` False and leaves the drive where it was).
+        target_force: the dead load's component along the drive direction [N].
+        reached: whether a converged controlled step carried ``target_force`` (to
+            ``force_tolerance``) before the equilibrium solve.
+    """
+
+    equilibrium: Solution
+    path: Solution
+    target_force: Array
+    reached: Array
+
+
+def _node_reference(structure: Structure, params: StructureParameters, node: int) -> Array:
+    """Undeformed position ``[3]`` [m] of a global node (tube node or point node)."""
+    if node < structure.node_count:
+        return params.node_position[node]
+    return params.elements.point_position[node - structure.node_count]
+
+
+def node_dead_load(structure: Structure, params: StructureParameters, node: int) -> Array:
+    """The dead point force ``[3]`` [N] on a global node: a tube node's ``node_force`` or a
+    free point node's ``point_force``."""
+    if node < structure.node_count:
+        return params.node_force[node]
+    row = node - structure.node_count
+    if row >= params.elements.point_force.shape[0]:
+        raise ValueError(f"node {node}: not a tube node or a free point node of the structure "
+                         f"(0..{structure.node_count + params.elements.point_force.shape[0] - 1})")
+    return params.elements.point_force[row]
+
+
+def with_node_dead_load(structure: Structure, params: StructureParameters, node: int,
+                        force) -> StructureParameters:
+    """``params`` with the dead point force on global ``node`` set to ``force`` ``[3]`` [N]."""
+    node_dead_load(structure, params, node)  # validates the node
+    force = jnp.asarray(force, dtype=float)
+    if node < structure.node_count:
+        return eqx.tree_at(lambda p: p.node_force, params, params.node_force.at[node].set(force))
+    row = node - structure.node_count
+    return eqx.tree_at(lambda p: p.elements.point_force, params,
+                       params.elements.point_force.at[row].set(force))
+
+
+def drive_to_dead_load(
+    structure: Structure,
+    params: StructureParameters,
+    node: int,
+    direction,
+    initial: Solution | None = None,
+    solver: NewtonKKT = NewtonKKT(),
+    steps: int = 24,
+    max_increment: float = 0.1,
+    force_tolerance: float = 1e-6,
+) -> DrivenEquilibrium:
+    """The equilibrium under ``params``' dead loads, reached by driving ``node`` along
+    ``direction`` until the actuator carries that node's dead load.
+
+    Why: force control steps the load and asks Newton for the displacement; where the
+    structure is soft in the load's direction, or the set of taut lines changes on the way,
+    Newton from the previous load level may not find the next equilibrium although it exists
+    (the V3 kite's 25 kg centre load: experiments/README). Displacement control of the loaded
+    node is stiff in that direction, and its equilibria coincide with the dead-load ones: with
+    the constraint ``(x - X) . d = u`` the stationarity conditions are those of the dead load
+    ``W d`` at ``node`` exactly when the constraint's reaction (``control_force``) equals
+    ``W``. So the drive solves the scalar equation ``control_force(u) = W``:
+
+    1. The node's dead load component ``W = f . d`` is taken out of ``params`` (the rest of
+       the load acts as given) and the node starts at ``initial``'s displacement ``u0``.
+    2. ``steps`` controlled solves (``lax.scan``, each warm-started from the last accepted
+       one): ``du = (W - F) / k`` with ``k`` the secant stiffness of the last two accepted
+       steps, ``|du| <= max_increment`` [m]; before two points are known, or where the secant
+       stiffness is not positive (a snap-through: ``F`` falls as ``u`` grows), a full
+       ``max_increment`` towards ``W``. A refused step (not converged) halves the increment
+       and keeps the drive where it was. Once ``|F - W| <= force_tolerance * max(|W|, 1 N)``
+       the remaining steps are skipped.
+    3. The dead-load problem (``params`` as given) is solved from the driven state: the
+       equilibrium reported, with the solver's own stopping rule (Newton starts within
+       ``force_tolerance`` of it).
+
+    Not covered: a snap-back (``u`` itself turning back along the path) needs an arc-length
+    method; the drive then stops short of ``W`` (``reached`` False) and the equilibrium solve
+    says whether Newton found the dead-load equilibrium from there.
+
+    Args:
+        node: global node index (a tube node or a free point node) carrying the dead load.
+        direction: ``[3]`` drive direction (normalised here); the load's component along it
+            is driven, its other components act as dead loads throughout.
+        initial: a :class:`Solution` of the same structure without the node's load along
+            ``direction`` (e.g. the gravity hang) to start from; ``None``: the undeformed
+            shape.
+        steps: controlled solves (a static count: one compiled program).
+        max_increment: largest drive increment [m] per step.
+        force_tolerance: relative force mismatch at which the drive stops.
+
+    Returns a :class:`DrivenEquilibrium`. Traceable (``jit``); gradients w.r.t. ``params``
+    flow through the equilibrium solve by the implicit function theorem (the drive only
+    supplies its start).
+    """
+    direction = jnp.asarray(direction, dtype=float)
+    direction = direction / jnp.linalg.norm(direction)
+    load = node_dead_load(structure, params, node)
+    target = jnp.dot(load, direction)
+    driven_params = with_node_dead_load(structure, params, node, load - target * direction)
+    geometry = tube_reference_geometry(structure, params)
+    reference = _node_reference(structure, params, node)
+    m_support = constraint_count(structure)
+    if initial is None:
+        state0, lam0 = initial_state(structure, params), jnp.zeros((m_support,))
+        u0 = jnp.zeros(())
+    else:
+        state0, lam0 = initial.state, initial.multipliers
+        u0 = jnp.dot(initial.node_position[node] - reference, direction)
+    state0, lam0, u0 = jax.lax.stop_gradient((state0, lam0, u0))
+    tolerance = force_tolerance * jnp.maximum(jnp.abs(target), 1.0)
+
+    # The drive only supplies the start of the equilibrium solve: no gradient through it.
+    path_params, path_geometry = jax.lax.stop_gradient((driven_params, geometry))
+
+    def controlled(state, lam, u):
+        return solve_load_level(structure, path_params, path_geometry, (node, direction, u),
+                                state, lam, solver, 1.0)
+
+    # The start as a controlled solution (at its own displacement: no Newton step).
+    first = controlled(state0, jnp.concatenate([lam0, jnp.zeros((1,))]), u0)
+
+    def step(carry, _):
+        state, lam, u, force, stiffness, increment, done = carry
+        secant = stiffness > 0.0
+        du = jnp.where(secant, (target - force) / jnp.where(secant, stiffness, 1.0),
+                       jnp.sign(target - force) * increment)
+        du = jnp.clip(du, -increment, increment)
+        trial = jax.lax.cond(done, lambda: controlled(state, lam, u),
+                             lambda: controlled(state, lam, u + du))
+        accepted = trial.converged & ~done
+        new_force = trial.control_force
+        new_stiffness = (new_force - force) / jnp.where(du == 0.0, 1.0, du)
+        pick = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
+            lambda a, b: jnp.where(accepted, a, b), new, old)
+        state, lam = pick((trial.state, trial.multipliers), (state, lam))
+        u, force = pick((u + du, new_force), (u, force))
+        stiffness = jnp.where(accepted, new_stiffness, stiffness)
+        increment = jnp.where(done | accepted, increment, 0.5 * increment)
+        done = done | (accepted & (jnp.abs(new_force - target) <= tolerance))
+        return (state, lam, u, force, stiffness, increment, done), trial
+
+    start = (first.state, first.multipliers, u0, first.control_force, jnp.zeros(()),
+             jnp.asarray(max_increment, dtype=float),
+             first.converged & (jnp.abs(first.control_force - target) <= tolerance))
+    (state, lam, _, _, _, _, reached), path = jax.lax.scan(step, start, None, length=steps)
+    equilibrium = solve_load_level(structure, params, geometry, None, state, lam[:-1], solver,
+                                   1.0)
+    return DrivenEquilibrium(equilibrium, path, target, reached)

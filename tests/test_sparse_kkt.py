@@ -122,7 +122,8 @@ def test_importing_klujax_restores_the_platform_setting():
 
 def _pattern_structures(tmp_path):
     """Every case above (the chain with its displacement control), the mini kite in kite_fem's
-    format (attachment ties, fixed points, a pulley) and the V3 kite (ties on long paths)."""
+    format (attachment ties, fixed points, a pulley; once more with a displacement control on
+    a free point node) and the V3 kite (ties on long paths)."""
     from .kite_fem_mini import SUSPENSION, write_mini_kite
 
     cases = [(name, structure, params, None if control is None else control[0])
@@ -131,6 +132,9 @@ def _pattern_structures(tmp_path):
     mini = jt.import_kite_fem(tmp_path / "mini.npz", suspension=SUSPENSION, centre_node=3,
                               tip_nodes=(7, 9), pressure_bar=0.2)
     cases.append(("mini kite", mini.structure, mini.params, None))
+    bridle_point = int(mini.node_index[10])  # a free point node: the control's row there
+    assert bridle_point >= mini.structure.node_count
+    cases.append(("mini kite, point-node control", mini.structure, mini.params, bridle_point))
     v3 = jt.import_kite_fem(os.path.join(os.path.dirname(__file__), os.pardir, "experiments",
                                          "data", "v3_hanging", "kite_fem", "initial.npz"),
                             pressure_bar=0.15)

@@ -73,8 +73,9 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
         own = topology.own_point_count
         for k, node in enumerate(topology.attachment_nodes):
             groups.append((3, np.concatenate([point(own + k), tube_node(node)])))
-    if control_node is not None:
-        groups.append((1, tube_node(control_node)))
+    if control_node is not None:  # a tube node, or a point node after them
+        groups.append((1, tube_node(control_node) if control_node < structure.node_count
+                       else point(control_node - structure.node_count)))
 
     rows, cols, start = [], [], 0
     for count, columns in groups:
