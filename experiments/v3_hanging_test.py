@@ -38,7 +38,8 @@ code 1 and no ``positions.csv`` when the solve does not converge; ``score`` pred
 (``--quick``: case 1 only, for CI) and scores them against the markers (the peers' metric,
 LE + struts; canopy apart), the 12 measured lengths and the undeformed kite, and writes
 ``v3_hanging_test.{txt,json}``, per-marker CSVs (``experiments/results`` or ``--out``) and
-the figures. One compiled program per process serves every case and scale.
+the figures. Two compiled programs per process (gravity and tip loads; centre loads, see
+``hang_centre_load``) serve every case and scale.
 """
 
 from __future__ import annotations
@@ -87,20 +88,20 @@ TARGET_CENTRE_MEAN = 150
 # LcsTR: node 33 to node 58.
 # The hang, from the undeformed shape (jaxtube.hang_kite's load_factors: fractions of gravity
 # and the case's loads, one per stage, each stage at most SOLVER.max_steps Newton steps from
-# where the previous one ended). Gravity-only and tip-load cases: full load at once (the
-# later stages start at the equilibrium and take no step). Centre-load cases (the load on an
-# unbridled leading-edge node, which makes the kite pitch and its bridle lines change state):
-# a proportional continuation; from the undeformed shape in one stage, or from the gravity
-# equilibrium, Newton did not converge in 400 steps (experiments/README). The last stage, at
-# full load, is the equilibrium reported and must converge; the intermediate ones are a path,
-# reported per stage. One compiled program serves every schedule (the factors are traced).
+# where the previous one ended; the later stages start at the equilibrium and take no step).
+# Centre-load cases (the load on an unbridled leading-edge node, which makes the kite pitch
+# and its bridle lines change state): gravity first (the centre load taken off), then the
+# load reached by driving its node along gravity until the actuator carries it
+# (jaxtube.drive_to_dead_load: displacement control, whose equilibria are the dead-load ones
+# when the actuator force equals the load), then the dead-load equilibrium from there. Force
+# control did not get there: in one stage Newton did not converge in 400 steps, and a
+# proportional continuation (0.2, 0.4, ...) stopped at 0.6 of case 3's 25.2 kg, although the
+# driven path shows the load rising steadily with the displacement (no limit point:
+# experiments/README). The dead-load solve at the end is the equilibrium reported.
 ONE_STAGE = (1.0, 1.0, 1.0, 1.0, 1.0)
-CONTINUATION = (0.2, 0.4, 0.6, 0.8, 1.0)
-
-
-def hang_schedule(centre_load_kg) -> tuple[float, ...]:
-    """The load factors per stage for a case (see the comment above)."""
-    return CONTINUATION if centre_load_kg > 0 else ONE_STAGE
+CENTRE_NODE = 29  # kite_fem numbering: the leading-edge node the centre load hangs on
+DRIVE_STEPS = 24  # displacement-controlled solves (a static count: one compiled program)
+DRIVE_INCREMENT_M = 0.1  # the drive's largest step [m]
 
 
 SOLVER = jt.NewtonKKT(max_steps=400)
@@ -127,76 +128,133 @@ def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0):
                               centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
 
 
-def hang(structure, params, log_scale, load_factors):
-    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]``, see
-    :func:`hang_schedule`) at bending scale ``exp(log_scale)``: the :class:`jaxtube.Solution`
-    of every stage (the last one is the case's equilibrium). Traceable."""
+def hang(structure, params, log_scale, load_factors=ONE_STAGE):
+    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]``) at bending
+    scale ``exp(log_scale)``: the :class:`jaxtube.Solution` of every stage (the last one is
+    the case's equilibrium). Traceable."""
     params = with_bending_scale(params, jnp.exp(jnp.reshape(log_scale, ())))
     return jt.hang_kite(structure, params, solver=SOLVER, load_factors=load_factors)
 
 
-class V3Program:
-    """One compiled hang of the V3 kite per process: ``(params, log s) -> Solution`` (all
-    cases share it: same structure and parameter shapes). ``compile_seconds``: its
-    compilation, once."""
+def centre_load_hang(structure, centre, params):
+    """A centre-load case (see the comment at ``ONE_STAGE``) with the tube laws of
+    ``params`` as they are: ``(gravity stages [5], jaxtube.DrivenEquilibrium)``; the driven
+    equilibrium's ``equilibrium`` is the case's. ``centre``: the loaded node's jaxtube index.
+    Traceable."""
+    gravity_only = jt.with_node_dead_load(structure, params, centre, jnp.zeros(3))
+    stages = jt.hang_kite(structure, gravity_only, solver=SOLVER, load_factors=ONE_STAGE)
+    hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
+    driven = jt.drive_to_dead_load(structure, params, centre, params.gravity, initial=hung,
+                                   solver=SOLVER, steps=DRIVE_STEPS,
+                                   max_increment=DRIVE_INCREMENT_M)
+    return stages, driven
 
-    _compiled = None
-    compile_seconds = None
+
+def hang_centre_load(structure, centre, params, log_scale):
+    """:func:`centre_load_hang` at bending scale ``exp(log_scale)``. Traceable."""
+    return centre_load_hang(structure, centre, with_bending_scale(
+        params, jnp.exp(jnp.reshape(log_scale, ()))))
+
+
+class V3Program:
+    """The compiled V3 programs of this process, each compiled once and shared by every case
+    and scale (same structure and parameter shapes): ``"hang"`` ``(params, log s) ->
+    Solution`` (gravity and tip loads) and ``"centre"`` ``(params, log s) -> (stages,
+    DrivenEquilibrium)`` (centre loads). ``compile_seconds``: each one's compilation."""
+
+    _compiled: dict = {}
+    compile_seconds: dict = {}
 
     @staticmethod
-    def _arguments(imported, scale, load_factors):
-        return (imported.params, jnp.log(jnp.asarray(scale, dtype=float)),
-                jnp.asarray(load_factors, dtype=float))
+    def kind(centre_load_kg) -> str:
+        return "centre" if centre_load_kg > 0 else "hang"
 
     @classmethod
-    def compile(cls, imported, scale):
-        """Compile the program once (ahead of any timed solve)."""
-        if cls._compiled is None:
+    def compile(cls, imported, scale, kind="hang"):
+        """Compile one program once (ahead of any timed solve)."""
+        if kind not in cls._compiled:
             started = time.perf_counter()
-            cls._compiled = jax.jit(partial(hang, imported.structure)).lower(
-                *cls._arguments(imported, scale, ONE_STAGE)).compile()
-            cls.compile_seconds = time.perf_counter() - started
+            if kind == "hang":
+                function = partial(hang, imported.structure)
+            else:
+                function = partial(hang_centre_load, imported.structure,
+                                   int(imported.node_index[CENTRE_NODE]))
+            cls._compiled[kind] = jax.jit(function).lower(
+                imported.params, jnp.log(jnp.asarray(scale, dtype=float))).compile()
+            cls.compile_seconds[kind] = time.perf_counter() - started
 
     @classmethod
-    def solve(cls, imported, scale, load_factors=ONE_STAGE):
-        cls.compile(imported, scale)
-        return cls._compiled(*cls._arguments(imported, scale, load_factors))
+    def solve(cls, imported, scale, kind="hang"):
+        cls.compile(imported, scale, kind)
+        return cls._compiled[kind](imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
 
 
 _SOLVED: dict = {}
 
 
+def case_equilibrium(result):
+    """A program's result as ``(the case's equilibrium: a Solution with a leading stage axis,
+    the gravity stages, the DrivenEquilibrium or None)``; for a centre load the equilibrium
+    is the dead-load solve after the drive (leading axis ``[1]``)."""
+    if isinstance(result, jt.Solution):
+        return result, result, None
+    stages, driven = result
+    return jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium), stages, driven
+
+
 def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False):
     """Solve one case (a case solved before in this process is not solved again); with
-    ``repeat`` once more, timed again (the program is compiled ahead of time, before the
-    first solve, so every timed solve is warm). Returns a
-    dict: ``imported``, ``solution`` (every stage),
-    ``positions`` ``[247, 3]`` (kite_fem numbering and frame), ``converged`` (the last
-    stage, the equilibrium reported), ``stage_converged``, ``load_factors``,
-    ``seconds`` (the timed solve), ``compile_seconds``, ``newton_iterations`` per stage."""
+    ``repeat`` once more, timed again (each program is compiled ahead of its first solve, so
+    every timed solve is warm). Returns a dict: ``imported``, ``solution`` (the case's
+    equilibrium with a leading stage axis: every gravity stage, or for a centre load the
+    dead-load solve after the drive, ``[1]``), ``positions`` ``[247, 3]`` (kite_fem numbering
+    and frame), ``converged`` (the equilibrium reported), ``stage_converged`` and
+    ``newton_iterations`` (per gravity stage, then for a centre load the dead-load solve),
+    ``drive`` (centre loads: the drive's steps, ``None`` otherwise), ``hang`` (in words),
+    ``seconds`` (the timed solve), ``compile_seconds`` (its program's)."""
     key = (float(pressure_bar), float(centre_load_kg), float(tip_load_kg), float(scale))
+    kind = V3Program.kind(centre_load_kg)
     if key in _SOLVED:  # the same case solved before in this process (tests, score+predict)
-        imported, solution, seconds = _SOLVED[key]
+        imported, result, seconds = _SOLVED[key]
     else:
         imported = import_case(pressure_bar, centre_load_kg, tip_load_kg)
-        V3Program.compile(imported, scale)  # not timed: every timed solve is warm
+        V3Program.compile(imported, scale, kind)  # not timed: every timed solve is warm
         started = time.perf_counter()
-        solution = jax.block_until_ready(V3Program.solve(
-            imported, scale, hang_schedule(centre_load_kg)))
+        result = jax.block_until_ready(V3Program.solve(imported, scale, kind))
         seconds = time.perf_counter() - started
-        _SOLVED[key] = (imported, solution, seconds)
+        _SOLVED[key] = (imported, result, seconds)
     if repeat:
         started = time.perf_counter()
-        solution = jax.block_until_ready(V3Program.solve(
-            imported, scale, hang_schedule(centre_load_kg)))
+        result = jax.block_until_ready(V3Program.solve(imported, scale, kind))
         seconds = time.perf_counter() - started
+    solution, stages, driven = case_equilibrium(result)
+    if driven is None:
+        drive = None
+        hang_words = f"load factors {list(ONE_STAGE)} (gravity and tip loads)"
+    else:
+        accepted = np.asarray(driven.path.converged)
+        drive = {"reached": bool(driven.reached),
+                 "target_force_N": float(driven.target_force),
+                 "control_displacement_m": np.asarray(
+                     driven.path.control_displacement)[accepted].tolist(),
+                 "control_force_N": np.asarray(driven.path.control_force)[accepted].tolist(),
+                 "newton_iterations": np.asarray(driven.path.iterations).tolist(),
+                 "step_converged": accepted.tolist()}
+        hang_words = (f"gravity (load factors {list(ONE_STAGE)}, centre load off), then the "
+                      f"centre load by displacement control of node {CENTRE_NODE} "
+                      f"(jaxtube.drive_to_dead_load, {DRIVE_STEPS} steps of at most "
+                      f"{DRIVE_INCREMENT_M} m), then the dead-load solve")
     positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
+    stage_converged = np.asarray(stages.converged).tolist()
+    iterations = np.asarray(stages.iterations).tolist()
+    if drive is not None:
+        stage_converged.append(bool(np.asarray(solution.converged)[-1]))
+        iterations.append(int(np.asarray(solution.iterations)[-1]))
     return dict(imported=imported, solution=solution, positions=positions,
                 converged=bool(np.asarray(solution.converged)[-1]),
-                stage_converged=np.asarray(solution.converged).tolist(),
-                load_factors=list(hang_schedule(centre_load_kg)), seconds=seconds,
-                compile_seconds=V3Program.compile_seconds,
-                newton_iterations=np.asarray(solution.iterations).tolist())
+                stage_converged=stage_converged, newton_iterations=iterations, drive=drive,
+                hang=hang_words, seconds=seconds,
+                compile_seconds=V3Program.compile_seconds[kind])
 
 
 def measured_lengths(positions) -> np.ndarray:
@@ -261,8 +319,10 @@ def implicit_derivative(scale, case=1):
 
     @jax.jit
     def positions_and_tangent(params, log_scale):
-        factors = jnp.asarray(hang_schedule(centre), dtype=float)
-        return jax.jvp(lambda t: hang(structure, params, t, factors).node_position[-1],
+        if centre > 0:
+            raise NotImplementedError("the implicit derivative is checked on the calibration "
+                                      "case (gravity and tip loads)")
+        return jax.jvp(lambda t: hang(structure, params, t).node_position[-1],
                        (log_scale,), (jnp.ones_like(log_scale),))
 
     x, dx = positions_and_tangent(imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
@@ -328,7 +388,7 @@ def calibrate(args) -> int:
         "hang_load_factors": list(ONE_STAGE),
         "history": history,
         "seconds": round(time.perf_counter() - started, 1),
-        "compile_seconds": V3Program.compile_seconds,
+        "compile_seconds": V3Program.compile_seconds.get("hang"),
         "load_average": os.getloadavg(),
     }
     if args.gradient_check:
@@ -360,7 +420,7 @@ def predict(args) -> int:
     summary = {"converged": outcome["converged"], "seconds": round(outcome["seconds"], 4),
                "compile_seconds": round(outcome["compile_seconds"], 2),
                "newton_iterations": outcome["newton_iterations"],
-               "load_factors": outcome["load_factors"],
+               "hang": outcome["hang"], "drive": outcome["drive"],
                "stage_converged": outcome["stage_converged"],
                "pressure_bar": args.pressure_bar, "centre_load_kg": args.centre_load_kg,
                "tip_load_kg": args.tip_load_kg, "bending_scale": scale,
@@ -416,7 +476,7 @@ def score(args) -> int:
             "converged": converged, "seconds": seconds,
             "compile_seconds": outcome["compile_seconds"],
             "newton_iterations": outcome["newton_iterations"],
-            "load_factors": outcome["load_factors"],
+            "hang": outcome["hang"], "drive": outcome["drive"],
             "stage_converged": outcome["stage_converged"],
             "weight_and_loads_N": balance["weight_and_loads_N"].tolist(),
             "reaction_sum_N": balance["reaction_sum_N"].tolist(),
@@ -442,7 +502,7 @@ def score(args) -> int:
     (out / "v3_hanging_test.txt").write_text(text)
     (out / "v3_hanging_test.json").write_text(json.dumps(
         {"bending_scale": scale, "calibration_converged": calibration.get("converged"),
-         "hang_load_factors": {"one_stage": list(ONE_STAGE), "centre_loads": list(CONTINUATION)},
+         "hang": {n: r["hang"] for n, r in rows.items()},
          "cases": rows,
          "peers_mm": {str(k): dict(zip(("undeformed", "billow_x0.36", "kite_fem"), v))
                       for k, v in PEERS.items()},

@@ -52,6 +52,7 @@ from ._io.kite_fem_report import kite_fem_line_table as kite_fem_line_table
 from ._io.kite_fem_report import kite_fem_reference_positions as kite_fem_reference_positions
 from ._io.kite_fem_report import weight_and_reactions as weight_and_reactions
 from ._laws import AbstractMomentLaw as AbstractMomentLaw
+from ._laws import CurvatureScaledLaw as CurvatureScaledLaw
 from ._laws import ScaledLaw as ScaledLaw
 from ._laws import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from ._laws import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011

@@ -69,3 +69,28 @@ def test_scaled_law():
     assert float(grad) == pytest.approx(float(law.moment(0.7, p, r)), rel=1e-10)
     d_factor = jax.grad(lambda s: jt.ScaledLaw(base, s).moment(0.7, p, r))(0.3)
     assert float(d_factor) == pytest.approx(float(base.moment(0.7, p, r)), rel=1e-12)
+
+
+def test_curvature_scaled_law_keeps_the_moments_and_softens():
+    """``CurvatureScaledLaw``: ``M(kappa) = M_base(s kappa)``: stiffness x s at zero, the
+    same moments (the collapse plateau) reached at curvatures / s; dW/dkappa = M (also at
+    zero curvature, gradient and curvature of the energy finite there)."""
+    base, s = jt.EmpiricalBendingLaw2011(), 0.4
+    law = jt.CurvatureScaledLaw(base, s)
+    kappa, p, r = jnp.linspace(0.0, 3.0, 13), 1.5e4, 0.08
+    np.testing.assert_allclose(law.moment(kappa / s, p, r), base.moment(kappa, p, r),
+                               rtol=1e-12)
+    np.testing.assert_array_equal(law.regime(kappa / s, p, r), base.regime(kappa, p, r))
+    assert float(law.initial_stiffness(p, r)) == pytest.approx(
+        s * float(base.initial_stiffness(p, r)), rel=1e-12)
+    slope = jax.grad(lambda k: law.moment(k, p, r))(0.0)
+    assert float(slope) == pytest.approx(float(law.initial_stiffness(p, r)), rel=1e-9)
+    for k in (0.0, 0.3, 2.5, 6.0):
+        grad = jax.grad(lambda x: law.energy_density(x**2, p, r))(k)
+        assert float(grad) == pytest.approx(float(law.moment(k, p, r)), rel=1e-10, abs=1e-12)
+    curvature = jax.hessian(lambda x: law.energy_density(x**2, p, r))(0.0)
+    assert float(curvature) == pytest.approx(float(law.initial_stiffness(p, r)), rel=1e-9)
+    # The largest moment in reach is the base law's, not s times it.
+    far = jnp.asarray(40.0)
+    assert float(law.moment(far / s, p, r)) == pytest.approx(float(base.moment(far, p, r)),
+                                                             rel=1e-12)

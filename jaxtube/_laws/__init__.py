@@ -34,6 +34,7 @@ from .empirical import EmpiricalBendingLaw2011 as EmpiricalBendingLaw2011
 from .empirical import EmpiricalTorsionLaw2011 as EmpiricalTorsionLaw2011
 from .linear import LinearLaw as LinearLaw
 from .linear import ReinforcedLaw as ReinforcedLaw
+from .scaled import CurvatureScaledLaw as CurvatureScaledLaw
 from .scaled import ScaledLaw as ScaledLaw
 from .spline import SplineLaw as SplineLaw
 from .tension_field import TensionFieldLaw as TensionFieldLaw
