@@ -192,3 +192,31 @@ def test_evidence_is_measured_against_the_residual_scatter_when_the_model_misses
     assert missing.delta_chi2 == pytest.approx(-20.0)  # the raw drop is kept
     assert not missing.significant and "BIC" in missing.decided_by
     assert any("residual scatter, c = 2.86" in reason for reason in missing.reasons)
+
+
+def test_a_coordinate_held_on_its_bound_costs_no_rejected_steps(monkeypatch):
+    """Levenberg-Marquardt on a linear least-squares stand-in whose second coordinate
+    starts on its lower bound (a null) with the descent direction pointing out of the box,
+    while the first is off its optimum: the bound coordinate is held (active set), the
+    other reaches its constrained optimum in a few evaluations (before: the coupled step was
+    clipped and rejected again and again, one evaluation each, and the fit stopped at 1.46
+    instead of the optimum 1.25, the damping having shrunk every step to nothing)."""
+    from fitting._calibrate import problem as calibration
+
+    design = np.array([[1.0, 1.0], [1.0, 2.0], [1.0, 3.0], [1.0, 4.0]])
+    target = np.array([2.0, 1.5, 1.0, 0.5])  # unconstrained slope -0.5 < 0 = its bound
+
+    def residuals_and_jacobian(vector, *args, **kwargs):
+        converged = np.ones(4, bool)
+        return design @ np.asarray(vector) - target, design, types.SimpleNamespace(
+            converged=converged, force=np.zeros(4))
+
+    monkeypatch.setattr(calibration, "_residuals_and_jacobian", residuals_and_jacobian)
+    problem = types.SimpleNamespace(
+        batch=types.SimpleNamespace(force=np.zeros(4), mask=np.ones(4, bool)),
+        free_index=(0, 1), free_bounds=(np.array([-np.inf, 0.0]), np.array([np.inf, 5.0])),
+        static=dict, full=lambda x: np.asarray(x), residual_args=lambda robust=None: ())
+    options = ft.FitOptions(progress=False, chi2_tol=0.05, ftol=1e-9)  # the diagnosis'
+    x, cost, report = calibration._levenberg_marquardt(problem, np.array([0.0, 0.0]), options)
+    assert x[1] == 0.0 and x[0] == pytest.approx(target.mean(), rel=1e-6)
+    assert report["converged"] and report["evaluations"] <= 4, report["evaluations"]

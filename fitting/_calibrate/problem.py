@@ -381,13 +381,22 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
     history = [2.0 * cost]  # chi^2 after each accepted iteration (stagnation rule)
     for iteration in range(1, options.max_iterations + 1):
         g = jac.T @ r
-        if float(np.max(np.abs(g))) <= options.gtol * max(1.0, cost):
+        # Active set: a coordinate on a bound whose descent direction points out of the box
+        # is held for this step (Voglis & Lagaris 2004, the "dogbox" rule). Solving for it
+        # and clipping afterwards would leave the other coordinates with a step computed as
+        # if it moved: rejected again and again at a null on a bound, one evaluation each.
+        active = ((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0))
+        free = ~active
+        g_free = np.where(free, g, 0.0)
+        if float(np.max(np.abs(g_free))) <= options.gtol * max(1.0, cost):
             outcome = FitOutcome.gradient_small
             break
         diag = np.maximum(np.diag(jtj), 1e-12 * max(float(np.max(np.diag(jtj))), 1e-300))
         accepted = False
         while not accepted:
-            step = np.linalg.solve(jtj + mu * np.diag(diag), -g)
+            step = np.zeros_like(x)
+            step[free] = np.linalg.solve(jtj[np.ix_(free, free)] + mu * np.diag(diag[free]),
+                                         -g[free])
             x_new = np.clip(x + step, lower, upper)
             step = x_new - x
             predicted = -(g @ step + 0.5 * step @ (jtj @ step))
