@@ -108,6 +108,7 @@ def _refit_stub(outcomes, calls):
         residual = np.array([np.sqrt(chi2)])
         return types.SimpleNamespace(
             vector=np.array(vector, float), residual=residual, jacobian=np.zeros((1, 2)),
+            convergence=types.SimpleNamespace(message="decrease of the loss below tolerance"),
             problem=types.SimpleNamespace(batch=types.SimpleNamespace(force=np.zeros(1))))
 
     return fit_problem
@@ -194,17 +195,14 @@ def test_evidence_is_measured_against_the_residual_scatter_when_the_model_misses
     assert any("residual scatter, c = 2.86" in reason for reason in missing.reasons)
 
 
-def test_a_coordinate_held_on_its_bound_costs_no_rejected_steps(monkeypatch):
-    """Levenberg-Marquardt on a linear least-squares stand-in whose second coordinate
-    starts on its lower bound (a null) with the descent direction pointing out of the box,
-    while the first is off its optimum: the bound coordinate is held (active set), the
-    other reaches its constrained optimum in a few evaluations (before: the coupled step was
-    clipped and rejected again and again, one evaluation each, and the fit stopped at 1.46
-    instead of the optimum 1.25, the damping having shrunk every step to nothing)."""
+def _linear_lm(monkeypatch, start, **options):
+    """Levenberg-Marquardt on a linear least-squares stand-in (no model): a line through
+    four points whose best slope, -0.5, is below the slope's lower bound 0; returns
+    ``(x, report, the intercept's optimum with the slope on its bound)``."""
     from fitting._calibrate import problem as calibration
 
     design = np.array([[1.0, 1.0], [1.0, 2.0], [1.0, 3.0], [1.0, 4.0]])
-    target = np.array([2.0, 1.5, 1.0, 0.5])  # unconstrained slope -0.5 < 0 = its bound
+    target = np.array([2.0, 1.5, 1.0, 0.5])
 
     def residuals_and_jacobian(vector, *args, **kwargs):
         converged = np.ones(4, bool)
@@ -215,8 +213,33 @@ def test_a_coordinate_held_on_its_bound_costs_no_rejected_steps(monkeypatch):
     problem = types.SimpleNamespace(
         batch=types.SimpleNamespace(force=np.zeros(4), mask=np.ones(4, bool)),
         free_index=(0, 1), free_bounds=(np.array([-np.inf, 0.0]), np.array([np.inf, 5.0])),
-        static=dict, full=lambda x: np.asarray(x), residual_args=lambda robust=None: ())
-    options = ft.FitOptions(progress=False, chi2_tol=0.05, ftol=1e-9)  # the diagnosis'
-    x, cost, report = calibration._levenberg_marquardt(problem, np.array([0.0, 0.0]), options)
-    assert x[1] == 0.0 and x[0] == pytest.approx(target.mean(), rel=1e-6)
+        free_names=["intercept", "slope"], static=dict, full=lambda x: np.asarray(x),
+        residual_args=lambda robust=None: ())
+    fit_options = ft.FitOptions(progress=False, chi2_tol=0.05, ftol=1e-9, **options)
+    x, _, report = calibration._levenberg_marquardt(problem, np.asarray(start, float),
+                                                    fit_options)
+    return x, report, target.mean()
+
+
+def test_a_coordinate_held_on_its_bound_costs_no_rejected_steps(monkeypatch):
+    """The slope starts on its lower bound (a null) with the descent direction pointing out
+    of the box, the intercept off its optimum: the slope is held (active set), the intercept
+    reaches its constrained optimum in a few evaluations (before: the coupled step was
+    clipped and rejected again and again, one evaluation each, and the fit stopped at 1.46
+    instead of the optimum 1.25, the damping having shrunk every step to nothing)."""
+    x, report, optimum = _linear_lm(monkeypatch, [0.0, 0.0])
+    assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-6)
     assert report["converged"] and report["evaluations"] <= 4, report["evaluations"]
+
+
+def test_a_start_that_comes_back_to_its_bound_ends_there(monkeypatch):
+    """From a slope of 3 (a "typical" start) the fit walks the slope back to its bound;
+    watched (``stop_on_bound``), it ends as soon as the active set holds it there, and not
+    otherwise."""
+    from fitting._calibrate.outcome import FitOutcome
+
+    x, report, _ = _linear_lm(monkeypatch, [0.0, 3.0], stop_on_bound=("slope",))
+    assert x[1] == 0.0 and report["message"] == FitOutcome[FitOutcome.back_on_bound]
+    x, report, optimum = _linear_lm(monkeypatch, [0.0, 3.0])
+    assert report["message"] != FitOutcome[FitOutcome.back_on_bound]
+    assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-3)

@@ -94,6 +94,10 @@ class FitOptions:
         hold_undetermined: :func:`fitting.fit` holds the coordinates the data do not
             determine (infinite standard error) at the physics-based first guess and refits
             the rest (as the diagnosis does); the result says which.
+        stop_on_bound: names of coordinates: the fit ends (``FitOutcome.back_on_bound``)
+            once every one of them is on a bound and held there by the active set (the
+            descent direction points out of the box); the diagnosis' second start of a refit
+            uses it (:func:`fitting._diagnose.selection.refit_candidate`).
         seed: of the multi-start perturbations.
         progress: show a progress bar.
     """
@@ -112,6 +116,7 @@ class FitOptions:
     stall_chi2: float = 1.0
     stall_window: int = 5
     hold_undetermined: bool = True
+    stop_on_bound: tuple[str, ...] = ()
     seed: int = 0
     progress: bool = True
 
@@ -379,6 +384,8 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
     outcome = FitOutcome.iterations_exhausted
     iteration = 0
     history = [2.0 * cost]  # chi^2 after each accepted iteration (stagnation rule)
+    watched = (np.isin(problem.free_names, options.stop_on_bound) if options.stop_on_bound
+               else None)
     for iteration in range(1, options.max_iterations + 1):
         g = jac.T @ r
         # Active set: a coordinate on a bound whose descent direction points out of the box
@@ -387,6 +394,9 @@ def _levenberg_marquardt(problem: FitProblem, x0: np.ndarray, options: FitOption
         # if it moved: rejected again and again at a null on a bound, one evaluation each.
         active = ((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0))
         free = ~active
+        if watched is not None and watched.any() and bool(np.all(active[watched])):
+            outcome = FitOutcome.back_on_bound
+            break
         g_free = np.where(free, g, 0.0)
         if float(np.max(np.abs(g_free))) <= options.gtol * max(1.0, cost):
             outcome = FitOutcome.gradient_small

@@ -3,11 +3,13 @@ swap step after each addition (rules and sources in :mod:`fitting._diagnose.rank
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .._calibrate.fit import fit_problem
+from .._calibrate.outcome import FitOutcome
 from .._calibrate.problem import FitError
 from .._calibrate.result import FitResult
 from .score import chi2, dispersion, likelihood_ratio_p_value, parameter_names
@@ -56,20 +58,28 @@ def refit_candidate(problem, names, effect, fit_options):
     pivots moving along, finds a large improvement inside it), or at the far edge of the
     parameter's box (the refit went into a basin other than the physical one, e.g. a radius
     exponent at +4 where the tension-field tube has -3). A refit that ended inside the box
-    is not repeated (each start costs a whole refit). Returns ``(refit or None, failure
-    words)``."""
+    is not repeated (each start costs a whole refit). The second start ends as soon as the
+    parameters whose null is a bound are all back on it, held there by the active set
+    (``FitOptions.stop_on_bound``): it found no basin away from the null, and what it would
+    still gain there, the candidate at its null, would not be the candidate's; such a start
+    is not kept. Returns ``(refit or None, failure words)``."""
     typical = np.array(problem.base, float)
     for name, parameter in zip(names, effect.parameters):
         i = problem.names.index(name)
         typical[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
+    on_null = tuple(name for name in names if bound_count(problem, (name,)))
+    second = (dataclasses.replace(fit_options, stop_on_bound=on_null) if on_null
+              else fit_options)
     best, failure = None, ""
-    for start in (problem.base, typical):
+    for start, options in ((problem.base, fit_options), (typical, second)):
         try:
-            refit = fit_problem(problem.with_free(problem.free_names, start), fit_options)
+            refit = fit_problem(problem.with_free(problem.free_names, start), options)
         except FitError as error:  # reported as a failed candidate, never dropped silently
             failure = str(error)
             refit = None
-        if refit is not None and (best is None or chi2(refit) < chi2(best)):
+        back = refit is not None and refit.convergence.message == FitOutcome[
+            FitOutcome.back_on_bound]
+        if refit is not None and not back and (best is None or chi2(refit) < chi2(best)):
             best = refit
         if not _ended_on_a_bound(problem, names, best):
             break
