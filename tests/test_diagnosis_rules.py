@@ -243,13 +243,3 @@ def test_a_start_that_comes_back_to_its_bound_ends_there(monkeypatch):
     x, report, optimum = _linear_lm(monkeypatch, [0.0, 3.0])
     assert report["message"] != FitOutcome[FitOutcome.back_on_bound]
     assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-3)
-
-
-def test_a_decision_that_a_chi2_of_1_would_flip_is_borderline():
-    """tf_reinforcement's step 2 (LR 14.4, one bounded parameter, 84 points, BIC threshold
-    10: ΔBIC -9.96) is borderline and gets polished fits; LR 20 and LR 3 are not."""
-    from fitting._diagnose.ranking import _borderline
-
-    assert _borderline(14.4, 1, 1, 84, 0.0025, 10.0)
-    assert not _borderline(20.0, 1, 1, 84, 0.0025, 10.0)
-    assert not _borderline(3.0, 1, 1, 84, 0.0025, 10.0)

@@ -47,11 +47,6 @@ one ``c`` for the whole step (the ranking's order is unchanged); the backward / 
 uses the current model's ``c``. Where a refit reaches the noise, ``c = 1`` and nothing
 changes.
 
-**Borderline decisions.** Each fit stops when chi^2 falls by less than ``chi2_tol`` per
-iteration, so each chi^2 is known to a fraction of 1. When a change of the likelihood ratio
-by 1 would flip the likelihood-ratio test or the BIC rule, the current model and that
-candidate's refit are polished to ``TIGHT_CHI2`` before the decision.
-
 **Cross-validation** over blocks of points within curves: each curve is cut into four
 contiguous blocks and fold ``k`` holds out block ``k + c mod 4`` of curve ``c``, so every
 fold keeps every specimen; each fold's refit is the case-deletion estimate from the optimum
@@ -89,8 +84,7 @@ from collections.abc import Sequence
 
 from .._bench.effects import BUILT_IN_EFFECTS, MODEL_EXTENSIONS, Effect
 from .._bench.scaling import PivotScaling
-from .._calibrate.fit import fit_problem
-from .._calibrate.problem import FitError, FitOptions
+from .._calibrate.problem import FitOptions
 from .._calibrate.result import FitResult
 from .._json import finite_or_none
 from .score import (
@@ -220,21 +214,6 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
     # The evidence is measured in units of the best refit's residual scatter when that
     # exceeds the noise (quasi-likelihood): one c for every candidate of the step.
     c = max(1.0, min((dispersion(r) for *_, r, _ in refits if r is not None), default=1.0))
-    borderline = [k for k, (effect, names, problem, refit, _) in enumerate(refits)
-                  if refit is not None and _borderline(
-                      (chi2_now - chi2(refit)) / c, len(names), bound_count(problem, names), n,
-                      alpha, options.bic_threshold)]
-    if borderline:
-        # A decision that a change of chi^2 by 1 would flip (statistically nothing; the fits
-        # stop at a decrease of chi2_tol per iteration, so each chi^2 is that uncertain) is
-        # made on fits polished to TIGHT_CHI2: the current model and those refits.
-        tight = dataclasses.replace(fit_options, max_iterations=options.baseline_iterations,
-                                    chi2_tol=TIGHT_CHI2)
-        chi2_now = min(chi2_now, chi2(_polished(current, tight)))
-        for k in borderline:
-            effect, names, problem, refit, failure = refits[k]
-            refits[k] = (effect, names, problem, _polished(refit, tight), failure)
-        c = max(1.0, min((dispersion(r) for *_, r, _ in refits if r is not None), default=1.0))
     rows = []
     for effect, names, problem, refit, failure in refits:
         test = tests[effect.name]
@@ -286,28 +265,6 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
             decided_by=decided, dispersion=c))
     rows.sort(key=lambda row: (not row.significant, row.delta_bic))
     return rows, cv_now.rmse_N
-
-
-#: chi2_tol of the fits that decide a borderline candidate (the calibration's default).
-TIGHT_CHI2 = 1e-3
-
-
-def _borderline(ratio, q, bounded, n, alpha, bic_threshold) -> bool:
-    """Whether a change of the likelihood ratio ``ratio`` by 1 would flip the likelihood-ratio
-    test or the BIC rule."""
-    outcomes = [(likelihood_ratio_p_value(v, q, bounded) < alpha,
-                 -v + q * math.log(n) < -bic_threshold) for v in (max(ratio - 1, 0.0), ratio + 1)]
-    return outcomes[0] != outcomes[1]
-
-
-def _polished(result: FitResult, options) -> FitResult:
-    """``result`` refitted from its optimum with ``options``; the better of the two."""
-    try:
-        polished = fit_problem(result.problem.with_free(result.problem.free_names,
-                                                        result.vector), options)
-    except FitError:
-        return result
-    return polished if chi2(polished) < chi2(result) else result
 
 
 def _failed_candidate(effect, names, test, failure, current) -> CandidateRanking:
