@@ -213,7 +213,8 @@ def _linear_lm(monkeypatch, start, **options):
     problem = types.SimpleNamespace(
         batch=types.SimpleNamespace(force=np.zeros(4), mask=np.ones(4, bool)),
         free_index=(0, 1), free_bounds=(np.array([-np.inf, 0.0]), np.array([np.inf, 5.0])),
-        free_names=["intercept", "slope"], static=dict, full=lambda x: np.asarray(x),
+        free_names=["intercept", "slope"], effect_names=("slope",), static=dict,
+        full=lambda x: np.asarray(x),
         residual_args=lambda robust=None: ())
     fit_options = ft.FitOptions(progress=False, chi2_tol=0.05, ftol=1e-9, **options)
     x, _, report = calibration._levenberg_marquardt(problem, np.asarray(start, float),
