@@ -6,7 +6,9 @@ Pass criteria (issue 16): the verdict contains the hidden effect and no other ph
 effect (``radius_scaling`` may join: the truth is a tension-field tube whose wrinkling
 curvature does not scale with r); a control has no physical effect; the final RMSE is within
 1.3x the generating floor. Writes ``experiments/results/diagnose_designs.txt`` and the
-reports next to it (``diagnose_designs/<name>.txt``).
+reports next to it (``diagnose_designs/<name>.txt``). A run is added to that file as a block
+(with its time and load) after the runs already recorded there, never in their place, so rows
+of designs this run did not make are kept; a design's report is replaced only when it is run.
 
     python experiments/diagnose_designs.py                 # all designs
     python experiments/diagnose_designs.py --only tf_shear tf_none_four_curves
@@ -68,6 +70,8 @@ def main() -> None:
                         help="show the diagnosis' progress bar (which fit it is on)")
     args = parser.parse_args()
     (RESULTS / "diagnose_designs").mkdir(parents=True, exist_ok=True)
+    path = RESULTS / args.results
+    earlier = path.read_text().rstrip("\n").splitlines() + [""] if path.exists() else []
     lines = [f"diagnose_designs.py, {time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} CPUs, "
              f"load average {os.getloadavg()[0]:.2f} at start",
              f"{'dataset':<22}{'hidden':<18}{'verdict':<34}{'base/floor':>11}"
@@ -88,13 +92,13 @@ def main() -> None:
         print(line, flush=True)
         (RESULTS / "diagnose_designs" / f"{name}.txt").write_text(diagnosis.report() + "\n")
         # Written after every design, so a run stopped part-way keeps the rows it finished.
-        (RESULTS / args.results).write_text("\n".join(lines) + "\n")
+        path.write_text("\n".join(earlier + lines) + "\n")
     lines.append("base/final/noise over floor: baseline RMSE, final RMSE and the model-free "
                  "noise estimate over the generating noise floor (designs.json); seconds "
                  "include compilation for the first dataset of each shape; evals: residual-and-"
                  "Jacobian evaluations of the whole diagnosis (every fit, every start)")
     lines.append(f"load average {os.getloadavg()[0]:.2f} at the end")
-    (RESULTS / args.results).write_text("\n".join(lines) + "\n")
+    path.write_text("\n".join(earlier + lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """The diagnosis' decision pieces on constructed inputs (no model, no compilation): the
-blocked cross-validation against brute-force refits, its validity check, and plausible
-sizes."""
+blocked cross-validation against brute-force refits, its validity check, plausible sizes,
+the boundary mixture, the refit's second start, and the evidence measured against the residual
+scatter when the model still misses."""
 
 import types
 
@@ -107,6 +108,7 @@ def _refit_stub(outcomes, calls):
         residual = np.array([np.sqrt(chi2)])
         return types.SimpleNamespace(
             vector=np.array(vector, float), residual=residual, jacobian=np.zeros((1, 2)),
+            convergence=types.SimpleNamespace(message="decrease of the loss below tolerance"),
             problem=types.SimpleNamespace(batch=types.SimpleNamespace(force=np.zeros(1))))
 
     return fit_problem
@@ -141,3 +143,104 @@ def test_a_refit_at_the_edge_of_its_box_is_repeated_from_the_typical_size(monkey
         {(0.0, 0.0): ((-2.6, 0.1), 12.0)}, calls))
     refit, _ = selection.refit_candidate(problem, names, ft.RadiusScaling, None)
     assert calls == [(0.0, 0.0)] and refit.vector[0] == pytest.approx(-2.6)
+
+
+def _ranked_against(chi2_now: float, chi2_refit: float, monkeypatch, points: int = 100):
+    """``rank_candidates`` on one candidate (reinforcement) whose refit lowers chi^2 from
+    ``chi2_now`` to ``chi2_refit`` (noise units, ``points`` points, one law coordinate
+    fitted); the refit, score test and cross-validation are stand-ins."""
+    from fitting._diagnose import ranking
+
+    names = ("law.A", "reinforcement.stiffness")
+
+    def fit(chi2, free, vector):
+        residual = np.full(points, np.sqrt(chi2 / points))
+        problem = types.SimpleNamespace(
+            names=names, free_index=free, base=np.zeros(2), lower=np.array([-np.inf, 0.0]),
+            upper=np.array([np.inf, 500.0]), free_names=[names[i] for i in free],
+            batch=types.SimpleNamespace(force=np.zeros(points), weight=np.ones(points)))
+        problem.with_free = lambda free_names, start: problem
+        return types.SimpleNamespace(problem=problem, residual=residual, vector=vector,
+                                     jacobian=np.zeros((points, 2)), rmse=1.0, noise=1.0)
+
+    current = fit(chi2_now, (0,), np.zeros(2))
+    refit = fit(chi2_refit, (0, 1), np.array([0.0, 15.0]))
+    monkeypatch.setattr(ranking, "refit_candidate", lambda *args: (refit, ""))
+    monkeypatch.setattr(ranking, "score_test", lambda *args: types.SimpleNamespace(
+        statistic=0.0, p_value=1.0))
+    monkeypatch.setattr(ranking, "absorbed_free_effects", lambda result, candidates: {
+        c.name: (np.ones(1), np.ones(1)) for c in candidates})
+    invalid = types.SimpleNamespace(valid=False, rmse_N=np.nan, words="not valid",
+                                    rise_z=lambda other: np.nan)
+    monkeypatch.setattr(ranking, "blocked_cross_validation", lambda result: invalid)
+    rows, _ = ranking.rank_candidates(current, [ft.Reinforcement],
+                                      ft.DiagnoseOptions(progress=False))
+    return rows[0]
+
+
+def test_evidence_is_measured_against_the_residual_scatter_when_the_model_misses(monkeypatch):
+    """The same chi^2 drop of 20 (noise units) is evidence when the refit's residuals are
+    the noise (chi^2 / dof < 1: c = 1, LR = 20, added) and is not when the refit still
+    misses (chi^2 / dof = 280 / 98 = 2.86: any flexibility gains that much per parameter;
+    LR = 20 / 2.86 = 7.0, BIC drop 7.0 - ln 100 = 2.4 < 10)."""
+    good = _ranked_against(115.0, 95.0, monkeypatch)
+    assert good.dispersion == 1.0 and good.lr_statistic == pytest.approx(20.0)
+    assert good.significant and good.delta_bic == pytest.approx(-20 + np.log(100))
+    missing = _ranked_against(300.0, 280.0, monkeypatch)
+    assert missing.dispersion == pytest.approx(280.0 / 98)
+    assert missing.lr_statistic == pytest.approx(20.0 * 98 / 280)
+    assert missing.delta_bic == pytest.approx(-20.0 * 98 / 280 + np.log(100))
+    assert missing.delta_chi2 == pytest.approx(-20.0)  # the raw drop is kept
+    assert not missing.significant and "BIC" in missing.decided_by
+    assert any("residual scatter, c = 2.86" in reason for reason in missing.reasons)
+
+
+def _linear_lm(monkeypatch, start, **options):
+    """Levenberg-Marquardt on a linear least-squares stand-in (no model): a line through
+    four points whose best slope, -0.5, is below the slope's lower bound 0; returns
+    ``(x, report, the intercept's optimum with the slope on its bound)``."""
+    from fitting._calibrate import problem as calibration
+
+    design = np.array([[1.0, 1.0], [1.0, 2.0], [1.0, 3.0], [1.0, 4.0]])
+    target = np.array([2.0, 1.5, 1.0, 0.5])
+
+    def residuals_and_jacobian(vector, *args, **kwargs):
+        converged = np.ones(4, bool)
+        return design @ np.asarray(vector) - target, design, types.SimpleNamespace(
+            converged=converged, force=np.zeros(4))
+
+    monkeypatch.setattr(calibration, "_residuals_and_jacobian", residuals_and_jacobian)
+    problem = types.SimpleNamespace(
+        batch=types.SimpleNamespace(force=np.zeros(4), mask=np.ones(4, bool)),
+        free_index=(0, 1), free_bounds=(np.array([-np.inf, 0.0]), np.array([np.inf, 5.0])),
+        free_names=["intercept", "slope"], effect_names=("slope",), static=dict,
+        full=lambda x: np.asarray(x),
+        residual_args=lambda robust=None: ())
+    fit_options = ft.FitOptions(progress=False, chi2_tol=0.05, ftol=1e-9, **options)
+    x, _, report = calibration._levenberg_marquardt(problem, np.asarray(start, float),
+                                                    fit_options)
+    return x, report, target.mean()
+
+
+def test_a_coordinate_held_on_its_bound_costs_no_rejected_steps(monkeypatch):
+    """The slope starts on its lower bound (a null) with the descent direction pointing out
+    of the box, the intercept off its optimum: the slope is held (active set), the intercept
+    reaches its constrained optimum in a few evaluations (before: the coupled step was
+    clipped and rejected again and again, one evaluation each, and the fit stopped at 1.46
+    instead of the optimum 1.25, the damping having shrunk every step to nothing)."""
+    x, report, optimum = _linear_lm(monkeypatch, [0.0, 0.0])
+    assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-6)
+    assert report["converged"] and report["evaluations"] <= 4, report["evaluations"]
+
+
+def test_a_start_that_comes_back_to_its_bound_ends_there(monkeypatch):
+    """From a slope of 3 (a "typical" start) the fit walks the slope back to its bound;
+    watched (``stop_on_bound``), it ends as soon as the active set holds it there, and not
+    otherwise."""
+    from fitting._calibrate.outcome import FitOutcome
+
+    x, report, _ = _linear_lm(monkeypatch, [0.0, 3.0], stop_on_bound=("slope",))
+    assert x[1] == 0.0 and report["message"] == FitOutcome[FitOutcome.back_on_bound]
+    x, report, optimum = _linear_lm(monkeypatch, [0.0, 3.0])
+    assert report["message"] != FitOutcome[FitOutcome.back_on_bound]
+    assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-3)

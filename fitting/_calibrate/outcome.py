@@ -16,6 +16,8 @@ class FitOutcome(jt.RESULTS):
     iterations_exhausted = "maximum number of iterations reached"
     stagnated = ("the loss stagnated: chi^2 fell by less than stall_chi2 over the last "
                  "stall_window iterations (statistically nothing)")
+    back_on_bound = ("back on the bound of the watched coordinates (stop_on_bound), held there "
+                     "by the active set: a start away from it that found no other basin")
 
 
 def ending(outcome) -> tuple[str, bool]:

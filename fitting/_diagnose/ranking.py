@@ -35,6 +35,18 @@ blocked cross-validated error.
 chi^2_1`` per bounded parameter (Chernoff 1954; Self & Liang 1987;
 :func:`fitting._diagnose.score.likelihood_ratio_p_value`).
 
+**Evidence against a model that still misses** (quasi-likelihood: Wedderburn 1974; McCullagh
+& Nelder, *Generalized Linear Models*, 1989, section 9.2; the same ``c`` as QAIC, Burnham &
+Anderson 2002, section 2.5): the tests assume that the larger model is right, so that its
+residuals are the noise. When even the best refit of a step leaves a residual scatter above
+the noise (``c = chi^2 / dof > 1``: the bending-law family cannot follow the truth, or the
+noise is underestimated), any extra flexibility lowers chi^2 by about ``c`` per parameter
+and a chi^2 drop in noise units overstates the evidence by ``c``. So ``LR``, ``Delta BIC``
+and ``Delta AIC`` are divided by ``c = max(1, min over the step's refits of chi^2 / dof)``,
+one ``c`` for the whole step (the ranking's order is unchanged); the backward / swap step
+uses the current model's ``c``. Where a refit reaches the noise, ``c = 1`` and nothing
+changes.
+
 **Cross-validation** over blocks of points within curves: each curve is cut into four
 contiguous blocks and fold ``k`` holds out block ``k + c mod 4`` of curve ``c``, so every
 fold keeps every specimen; each fold's refit is the case-deletion estimate from the optimum
@@ -79,6 +91,7 @@ from .score import (
     _share,
     absorbed_free_effects,
     chi2,
+    dispersion,
     likelihood_ratio_p_value,
     parameter_names,
     point_count,
@@ -114,7 +127,9 @@ class CandidateRanking:
     parameters cannot absorb (1: none of it is absorbed); fit: the refit (not serialised);
     lr_statistic, lr_p_value: the likelihood-ratio test on the refit (the decision);
     plausible: its fitted size is within the effect's plausible range; decided_by: which
-    rules decided, in words.
+    rules decided, in words; dispersion: the ``c`` that ``lr_statistic``, ``delta_bic`` and
+    ``delta_aic`` are divided by (``delta_chi2`` / ``c``; 1 when the best refit's residuals
+    are the noise; module docstring).
     """
 
     effect: str
@@ -137,6 +152,7 @@ class CandidateRanking:
     lr_p_value: float = math.nan
     plausible: bool = True
     decided_by: str = ""
+    dispersion: float = 1.0
 
     def to_json(self) -> dict:
         row = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "fit"}
@@ -184,36 +200,44 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
     fit_options = _fit_options(options, current.noise, options.refit_iterations)
     tests = {effect.name: score_test(current, parameter_names(effect)) for effect in candidates}
     ordered = sorted(candidates, key=lambda e: -tests[e.name].statistic)
-    rows = []
+    refits = []
     for effect in ordered:
         names = parameter_names(effect)
         if bar is not None:
             bar.set_postfix_str(effect.name)
-        test = tests[effect.name]
         problem = current.problem.with_free(current.problem.free_names + list(names),
                                             current.vector)
         refit, failure = refit_candidate(problem, names, effect, fit_options)
         if bar is not None:
             bar.update(1)
+        refits.append((effect, names, problem, refit, failure))
+    # The evidence is measured in units of the best refit's residual scatter when that
+    # exceeds the noise (quasi-likelihood): one c for every candidate of the step.
+    c = max(1.0, min((dispersion(r) for *_, r, _ in refits if r is not None), default=1.0))
+    rows = []
+    for effect, names, problem, refit, failure in refits:
+        test = tests[effect.name]
         if refit is None:
             rows.append(_failed_candidate(effect, names, test, failure, current))
             continue
         chi2_new = chi2(refit)
         q = len(names)
         delta = chi2_new - chi2_now
-        delta_bic = delta + q * math.log(n)
-        ratio = max(-delta, 0.0)
+        delta_bic = delta / c + q * math.log(n)
+        ratio = max(-delta, 0.0) / c
         lr_p = likelihood_ratio_p_value(ratio, q, bound_count(problem, names))
         cv = blocked_cross_validation(refit)
         estimates = {name: float(refit.vector[problem.names.index(name)]) for name in names}
         reasons, failed = [], []
+        units = f" in units of the residual scatter, c = {c:.3g}" if c > 1.0 else ""
         if not lr_p < alpha:
             failed.append("likelihood ratio")
-            reasons.append(f"likelihood-ratio test not significant (LR = {ratio:.3g}, p = "
-                           f"{lr_p:.2g} >= {alpha:.2g})")
+            reasons.append(f"likelihood-ratio test not significant (LR = {ratio:.3g}{units}, "
+                           f"p = {lr_p:.2g} >= {alpha:.2g})")
         if not delta_bic < -options.bic_threshold:
             failed.append("BIC")
-            reasons.append(f"BIC drop {-delta_bic:.3g} <= {options.bic_threshold:g}")
+            reasons.append(f"BIC drop {-delta_bic:.3g} <= {options.bic_threshold:g}"
+                           + (f" ({units.strip()})" if units else ""))
         cv_used = cv.valid and cv_now.valid
         rise = cv.rise_z(cv_now)
         if cv_used and rise > CV_RISE_Z:
@@ -233,12 +257,12 @@ def rank_candidates(current: FitResult, candidates, options: DiagnoseOptions, ba
         rows.append(CandidateRanking(
             effect=effect.name, kind=effect.kind, parameters=names,
             score_statistic=test.statistic, score_p_value=test.p_value, rmse_N=refit.rmse,
-            chi2=chi2_new, delta_chi2=delta, delta_bic=delta_bic, delta_aic=delta + 2 * q,
+            chi2=chi2_new, delta_chi2=delta, delta_bic=delta_bic, delta_aic=delta / c + 2 * q,
             cv_rmse_N=cv.rmse_N, estimates=estimates,
             significant=not reasons, reasons=tuple(reasons),
             unabsorbed_share=_share(residual_part, whole), fit=refit,
             lr_statistic=ratio, lr_p_value=lr_p, plausible=not implausible,
-            decided_by=decided))
+            decided_by=decided, dispersion=c))
     rows.sort(key=lambda row: (not row.significant, row.delta_bic))
     return rows, cv_now.rmse_N
 

@@ -90,6 +90,14 @@ def point_count(result: FitResult) -> int:
     return int(np.sum(result.problem.batch.weight > 0))
 
 
+def dispersion(result: FitResult) -> float:
+    """``chi^2 / dof`` of a fit (noise units; ``dof`` = points - fitted coordinates): 1 when
+    its residuals are the noise, larger when the model still misses something (or the
+    noise is underestimated)."""
+    dof = max(point_count(result) - len(result.problem.free_index), 1)
+    return chi2(result) / dof
+
+
 def likelihood_ratio_p_value(statistic: float, dof: int, at_bound: int) -> float:
     """p-value of the likelihood-ratio statistic ``LR = chi^2_null - chi^2_refit`` (noise
     units) for freeing ``dof`` coordinates of which ``at_bound`` have their null value on a

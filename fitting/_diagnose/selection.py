@@ -3,14 +3,16 @@ swap step after each addition (rules and sources in :mod:`fitting._diagnose.rank
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .._calibrate.fit import fit_problem
+from .._calibrate.outcome import FitOutcome
 from .._calibrate.problem import FitError
 from .._calibrate.result import FitResult
-from .score import chi2, likelihood_ratio_p_value, parameter_names
+from .score import chi2, dispersion, likelihood_ratio_p_value, parameter_names
 
 #: A competitor replaces an earlier addition when it lowers the BIC by more than this
 #: ("positive" evidence on the scale of Kass & Raftery 1995; it keeps near-ties from swapping).
@@ -56,20 +58,28 @@ def refit_candidate(problem, names, effect, fit_options):
     pivots moving along, finds a large improvement inside it), or at the far edge of the
     parameter's box (the refit went into a basin other than the physical one, e.g. a radius
     exponent at +4 where the tension-field tube has -3). A refit that ended inside the box
-    is not repeated (each start costs a whole refit). Returns ``(refit or None, failure
-    words)``."""
+    is not repeated (each start costs a whole refit). The second start ends as soon as the
+    parameters whose null is a bound are all back on it, held there by the active set
+    (``FitOptions.stop_on_bound``): it found no basin away from the null, and what it would
+    still gain there, the candidate at its null, would not be the candidate's; such a start
+    is not kept. Returns ``(refit or None, failure words)``."""
     typical = np.array(problem.base, float)
     for name, parameter in zip(names, effect.parameters):
         i = problem.names.index(name)
         typical[i] = float(np.clip(parameter.typical, problem.lower[i], problem.upper[i]))
+    on_null = tuple(name for name in names if bound_count(problem, (name,)))
+    second = (dataclasses.replace(fit_options, stop_on_bound=on_null) if on_null
+              else fit_options)
     best, failure = None, ""
-    for start in (problem.base, typical):
+    for start, options in ((problem.base, fit_options), (typical, second)):
         try:
-            refit = fit_problem(problem.with_free(problem.free_names, start), fit_options)
+            refit = fit_problem(problem.with_free(problem.free_names, start), options)
         except FitError as error:  # reported as a failed candidate, never dropped silently
             failure = str(error)
             refit = None
-        if refit is not None and (best is None or chi2(refit) < chi2(best)):
+        back = refit is not None and refit.convergence.message == FitOutcome[
+            FitOutcome.back_on_bound]
+        if refit is not None and not back and (best is None or chi2(refit) < chi2(best)):
             best = refit
         if not _ended_on_a_bound(problem, names, best):
             break
@@ -94,9 +104,10 @@ def implausible_words(effect, names, estimates) -> list[str]:
     return words
 
 
-def bic(result: FitResult, n_points: int) -> float:
-    """``chi^2 + k ln n`` (Schwarz 1978) of a fit with ``k`` fitted coordinates."""
-    return chi2(result) + len(result.problem.free_index) * math.log(n_points)
+def bic(result: FitResult, n_points: int, c: float = 1.0) -> float:
+    """``chi^2 / c + k ln n`` (Schwarz 1978) of a fit with ``k`` fitted coordinates, chi^2 in
+    units of ``c`` times the noise variance (the ranking's dispersion)."""
+    return chi2(result) / c + len(result.problem.free_index) * math.log(n_points)
 
 
 def _without(current: FitResult, drop, add, held, polish):
@@ -125,9 +136,11 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
     (likelihood ratio and BIC of keeping it, given the rest), and would a competitor of its
     own step (significant there, plausible, not in the model) now explain the data better in
     its place (BIC lower by more than :data:`SWAP_BIC`)? ``in_model`` (names, in order) is
-    updated in place. Returns ``(model, removed names, words)``."""
+    updated in place. Evidence in units of the current model's residual scatter when that
+    exceeds the noise (``c``, as in the ranking). Returns ``(model, removed names, words)``."""
     words, removed = [], []
     alpha = options.alpha / max(len(by_name), 1)
+    c = max(1.0, dispersion(current))
     for step in steps:
         name = step.added
         if name not in in_model or name == best.effect:
@@ -137,7 +150,7 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
         if reduced is None:
             continue
         q = len(effect.parameters)
-        ratio = max(chi2(reduced) - chi2(current), 0.0)
+        ratio = max(chi2(reduced) - chi2(current), 0.0) / c
         bounded = sum(bool(np.isclose(held[n], current.problem.lower[
             current.problem.names.index(n)])) for n in parameter_names(effect))
         p_value = likelihood_ratio_p_value(ratio, q, bounded)
@@ -163,7 +176,7 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
             estimates = {n: float(swapped.vector[swapped.problem.names.index(n)])
                          for n in rival_names}
             plausible = not implausible_words(by_name[rival.effect], rival_names, estimates)
-            gain = bic(current, n_points) - bic(swapped, n_points)
+            gain = bic(current, n_points, c) - bic(swapped, n_points, c)
             if plausible and gain > SWAP_BIC:
                 words.append(
                     f"{name} (added at an earlier step) is swapped for {rival.effect}: with "

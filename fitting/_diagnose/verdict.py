@@ -8,7 +8,7 @@ import math
 
 from .._calibrate.noise import NoiseEstimate
 from .._calibrate.result import FitResult
-from .score import chi2, point_count
+from .score import dispersion, point_count
 from .separation import _separation_advice, _spread_words
 
 #: Two significant candidates whose BIC drops differ by less than this explain the data
@@ -23,9 +23,8 @@ def noise_words(noise: float, estimate: NoiseEstimate | None, final: FitResult) 
     """The noise (given, or estimated with its standard error), and whether the final
     model's residual scatter ``sigma sqrt(chi^2 / dof)`` agrees with it (standard error of
     the scatter ``scatter / sqrt(2 dof)``, of a chi distribution for large ``dof``)."""
-    n = point_count(final)
-    dof = max(n - len(final.problem.free_index), 1)
-    scatter = noise * math.sqrt(chi2(final) / dof)
+    dof = max(point_count(final) - len(final.problem.free_index), 1)
+    scatter = noise * math.sqrt(dispersion(final))
     head = (f"Noise {estimate.words()}" if estimate is not None else
             f"Noise {noise:.3g} N (given)")
     se_estimate = estimate.standard_error_N if estimate is not None else 0.0
@@ -70,7 +69,10 @@ def verdict_words(baseline, baseline_comparison, steps, in_model, final_comparis
                         else "cross-validation left out (no valid fold design)")
             words.append(
                 f"Missing: {step.added} ({values}): likelihood-ratio test on the refit LR = "
-                f"{row.lr_statistic:.3g} (p = {row.lr_p_value:.2g}; decides), ΔBIC "
+                f"{row.lr_statistic:.3g}"
+                + (f" in units of the residual scatter (c = {row.dispersion:.3g})"
+                   if row.dispersion > 1.0 else "")
+                + f" (p = {row.lr_p_value:.2g}; decides), ΔBIC "
                 f"{row.delta_bic:.1f}, {cv_words}; score test at the null S = "
                 f"{row.score_statistic:.3g} (p = {row.score_p_value:.2g}; orders the refits "
                 "only).")
