@@ -71,17 +71,23 @@ def rms_figure(rows, peers, path) -> None:
     plt.close(fig)
 
 
-def law_figure(scale, path) -> None:
-    """Moment against curvature of the calibrated law (Breukels 2011 x ``scale``) and the
-    unscaled law, at 0.15 and 0.25 bar, for the V3's smallest and largest leading-edge radius."""
+def law_figure(scale, law_form, path) -> None:
+    """Moment against curvature of the calibrated law (Breukels 2011 with its factor
+    ``scale`` in ``law_form``: "curvature" stiffness x scale, moments kept; "moment" the whole
+    curve x scale) and the unscaled law, at 0.15 and 0.25 bar, for the V3's smallest and
+    largest leading-edge radius."""
     curvature = np.linspace(0.0, 1.5, 200)
     fig, ax = plt.subplots(figsize=(7, 4))
-    law = jt.EmpiricalBendingLaw2011()
+    base = jt.EmpiricalBendingLaw2011()
+    law = (jt.CurvatureScaledLaw(base, scale) if law_form == "curvature"
+           else jt.ScaledLaw(base, scale))
     for pressure_bar, style in ((0.15, "-"), (0.25, "--")):
         for radius, colour in ((0.0565, "tab:blue"), (0.101, "tab:red")):
-            moment = np.asarray(law.moment(curvature, pressure_bar * 1e5, radius))
-            ax.plot(curvature, scale * moment, style, color=colour,
-                    label=f"x {scale:.3f}: {pressure_bar} bar, r = {1e3 * radius:.0f} mm")
+            moment = np.asarray(base.moment(curvature, pressure_bar * 1e5, radius))
+            calibrated = np.asarray(law.moment(curvature, pressure_bar * 1e5, radius))
+            ax.plot(curvature, calibrated, style, color=colour,
+                    label=f"{law_form} x {scale:.3f}: {pressure_bar} bar, "
+                          f"r = {1e3 * radius:.0f} mm")
             ax.plot(curvature, moment, style, color=colour, alpha=0.3, lw=0.8)
     ax.set_xlabel("curvature [1/m]")
     ax.set_ylabel("bending moment [N m]")

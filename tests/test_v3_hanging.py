@@ -46,7 +46,8 @@ def case1(script):
     """Case 1 hung with the committed calibration (this compiles the shared program)."""
     calibration = json.loads(script.CALIBRATION.read_text())
     pressure, centre, tip, _ = script.CASES[1]
-    return script.solve_case(pressure, centre, tip, calibration["bending_scale"], repeat=False)
+    return script.solve_case(pressure, centre, tip, calibration["bending_scale"], repeat=False,
+                             law_form=calibration.get("law_form", "moment"))
 
 
 def test_measured_length_definitions_reproduce_kite_fem(script):
