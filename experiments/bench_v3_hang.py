@@ -10,8 +10,12 @@ as found (nothing is tuned to it). Results go to ``experiments/results/bench_v3_
 when ``--write`` is given.
 
     python experiments/bench_v3_hang.py [--pressure-bar 0.15] [--bending-scale S]
-        [--steps K] [--smoothing W1 W2 ...] [--linear-solver auto|dense|sparse]
-        [--repeats 5] [--write]
+        [--steps K] [--smoothing W1 W2 ...] [--linear-solver auto|dense|sparse|augmented]
+        [--baseline ROUTE] [--repeats 5] [--write]
+
+``--baseline ROUTE``: the same hang on another KKT route, compiled and timed in the same
+process after the main one, and the ratio of the warm medians (a ratio from one process,
+not from runs on different days).
 """
 
 from __future__ import annotations
@@ -42,12 +46,15 @@ def main() -> None:
                         help="Newton iteration cap (NewtonKKT.max_steps)")
     parser.add_argument("--restarts", type=int, default=8,
                         help="runs of max_steps Newton steps after the first, until converged")
-    parser.add_argument("--linear-solver", default="auto", choices=("auto", "dense", "sparse"),
+    parser.add_argument("--linear-solver", default="auto",
+                        choices=("auto", "dense", "sparse", "augmented"),
                         help="KKT route (NewtonKKT.linear_solver)")
     parser.add_argument("--smoothing", type=float, nargs="+", default=None,
                         help="continuation: the lines' blend width per stage, all at full "
                              "gravity (jaxtube.hang_kite's tension_smoothing); the last one is "
                              "the model's")
+    parser.add_argument("--baseline", default=None, choices=("dense", "sparse", "augmented"),
+                        help="time the same hang on this KKT route too, in this process")
     parser.add_argument("--write", action="store_true")
     parser.add_argument("--figure", type=Path, default=None,
                         help="write the hung kite's 3-D figure (PNG) here")
@@ -58,25 +65,46 @@ def main() -> None:
                                   bending_scale=args.bending_scale)
     imported_at = time.perf_counter()
     settings = {} if args.max_steps is None else {"max_steps": args.max_steps}
-    solver = jt.NewtonKKT(linear_solver=args.linear_solver, **settings)
     schedule = {}
     if args.smoothing:
         schedule = {"load_factors": [1.0] * len(args.smoothing),
                     "tension_smoothing": args.smoothing}
-    hang = jax.jit(jt.hang_program(imported.structure, args.steps, solver, **schedule))
-    start = jt.undeformed_start(imported.structure, imported.params)
-    compiled = hang.lower(imported.params, start).compile()
-    compiled_at = time.perf_counter()
-    print(f"imported in {imported_at - started:.1f} s, compiled in "
-          f"{compiled_at - imported_at:.1f} s", flush=True)
-    times = []
-    for _ in range(args.repeats):
-        t0 = time.perf_counter()
-        solution, runs = jt.hang_until_converged(
-            imported.structure, imported.params, restarts=args.restarts, compiled=compiled,
-            solver=solver)
-        jax.block_until_ready(solution)
-        times.append(time.perf_counter() - t0)
+
+    def timed_hang(route):
+        """Compile the hang on a KKT route and time ``--repeats`` warm solves:
+        ``(compile seconds, warm times, last solution, runs)``."""
+        solver = jt.NewtonKKT(linear_solver=route, **settings)
+        t_compile = time.perf_counter()
+        hang = jax.jit(jt.hang_program(imported.structure, args.steps, solver, **schedule))
+        start = jt.undeformed_start(imported.structure, imported.params)
+        compiled = hang.lower(imported.params, start).compile()
+        t_compile = time.perf_counter() - t_compile
+        print(f"{route} route compiled in {t_compile:.1f} s", flush=True)
+        times = []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            solution, runs = jt.hang_until_converged(
+                imported.structure, imported.params, restarts=args.restarts,
+                compiled=compiled, solver=solver)
+            jax.block_until_ready(solution)
+            times.append(time.perf_counter() - t0)
+        return t_compile, times, solution, runs
+
+    compile_seconds, times, solution, runs = timed_hang(args.linear_solver)
+    solver = jt.NewtonKKT(linear_solver=args.linear_solver, **settings)
+    compiled_at = imported_at + compile_seconds
+    baseline = None
+    if args.baseline is not None:
+        b_compile, b_times, b_solution, b_runs = timed_hang(args.baseline)
+        b_gap = float(np.max(np.abs(np.asarray(b_solution.node_position)[-1]
+                                    - np.asarray(solution.node_position)[-1])))
+        baseline = (
+            f"baseline, same process: {args.baseline} route, warm median "
+            f"{statistics.median(b_times):.3f} s (min {min(b_times):.3f}, max "
+            f"{max(b_times):.3f}), compile {b_compile:.1f} s, runs {b_runs}, Newton iterations "
+            f"{np.asarray(b_solution.iterations).tolist()}; {args.linear_solver} is "
+            f"{statistics.median(b_times) / statistics.median(times):.2f}x faster; largest "
+            f"node distance between the two equilibria {b_gap:.2e} m")
     converged = np.asarray(solution.converged)
     iterations = np.asarray(solution.iterations)
     positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
@@ -118,7 +146,7 @@ def main() -> None:
         f"{1e3 * np.sqrt(np.mean(undeformed**2)):.1f} mm, max {1e3 * undeformed.max():.1f} mm",
         f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; jax {jax.__version__}; "
         f"{args.linear_solver} KKT route",
-    ]
+    ] + ([baseline] if baseline else [])
     if args.figure is not None:
 
         figure = jt.deformed_shape_figure(

@@ -56,10 +56,8 @@ import json
 import os
 import sys
 import time
-from functools import partial
 from pathlib import Path
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -67,267 +65,30 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _v3_kite_fem import DATA, v3_tube_surfaces  # noqa: E402
+from _v3_kite_fem import v3_tube_surfaces  # noqa: E402
+from _v3_model import (  # noqa: E402
+    CALIBRATION,
+    CASES,
+    FIGURES,
+    HANG_STAGES,
+    LAW_FORMS,
+    LENGTH_NAMES,
+    PEERS,
+    RESULTS,
+    TARGET_CENTRE_MEAN,
+    TARGETS,
+    V3Program,
+    hang,
+    import_case,
+    load_calibration,
+    markers_of,
+    measured_lengths,
+    read_measured_lengths,
+    solve_case,
+)
 
 import fitting  # noqa: E402
 import jaxtube as jt  # noqa: E402
-
-MODEL = DATA / "kite_fem" / "initial.npz"
-CALIBRATION = HERE / "results" / "v3_calibration.json"
-RESULTS = HERE / "results"
-FIGURES = HERE / "figures"
-# case: (pressure [bar], centre load [kg], tip load [kg], marker file)
-CASES = {1: (0.15, 0.0, 0.0, "P1_S"), 2: (0.15, 9.7, 0.0, "P1_PL1"),
-         3: (0.15, 25.2, 0.0, "P1_PL2"), 4: (0.15, 0.0, 2.0, "P1_TL1"),
-         5: (0.15, 0.0, 5.0, "P1_TL2")}
-# Published RMS [mm] (data README): undeformed, Billow x 0.36, kite_fem (this version's
-# states, scored by the README's independent implementation), and issue 15's targets.
-PEERS = {1: (695, 100, 169), 2: (654, 152, 369), 3: (639, 171, 389), 4: (139, 134, 112),
-         5: (99, 89, 79)}
-TARGETS = {1: 95, 4: 110, 5: 79}
-TARGET_CENTRE_MEAN = 150
-# The 12 measured lengths (kite_fem examples/validation/Comparedata.py, reproduced to 1e-12
-# from kite_fem's solved states and its model_results.csv): strut sections run from
-# leading-edge nodes 1, 7, ..., 57 to trailing-edge nodes 2, 8, ..., 58. La..Li: distances
-# between neighbouring trailing-edge strut ends, from node 58 towards node 2; b: node 58 to
-# node 2 (trailing-edge span); LcsTL: node 25 (leading edge, left of centre) to node 2;
-# LcsTR: node 33 to node 58.
-# The hang, from the undeformed shape (jaxtube.hang_kite's load_factors: fractions of gravity
-# and the case's loads, one per stage, each stage at most SOLVER.max_steps Newton steps from
-# where the previous one ended; the later stages start at the equilibrium and take no step).
-# Centre-load cases (the load on an unbridled leading-edge node, which makes the kite pitch
-# and its bridle lines change state): gravity first (the centre load taken off), then the
-# load reached by driving its node along gravity until the actuator carries it
-# (jaxtube.drive_to_dead_load: displacement control, whose equilibria are the dead-load ones
-# when the actuator force equals the load), then the dead-load equilibrium from there. Force
-# control did not get there: in one stage Newton did not converge in 400 steps, and a
-# proportional continuation (0.2, 0.4, ...) stopped at 0.6 of case 3's 25.2 kg, although the
-# driven path shows the load rising steadily with the displacement (no limit point:
-# experiments/README). The dead-load solve at the end is the equilibrium reported.
-ONE_STAGE = (1.0, 1.0, 1.0, 1.0, 1.0)
-# Gravity and tip loads: a proportional continuation (with the curvature-scaled law, case 5's
-# full tip load from the undeformed shape did not converge in 5 x 400 steps; through these
-# stages it converges in 166, 17, 12, 13, 13 steps).
-HANG_STAGES = (0.2, 0.4, 0.6, 0.8, 1.0)
-# The calibrated law's form: "curvature" (jaxtube.CurvatureScaledLaw: the 2011 curve's
-# stiffness x s, its moments kept) or "moment" (jaxtube.ScaledLaw: the whole curve x s, as the
-# peers scale it). experiments/v3_missing_effect.py chose between them (README).
-LAW_FORMS = ("curvature", "moment")
-CENTRE_NODE = 29  # kite_fem numbering: the leading-edge node the centre load hangs on
-DRIVE_STEPS = 24  # displacement-controlled solves (a static count: one compiled program)
-DRIVE_INCREMENT_M = 0.1  # the drive's largest step [m]
-
-
-SOLVER = jt.NewtonKKT(max_steps=400)
-TRAILING_EDGE_ENDS = (58, 52, 46, 40, 34, 26, 20, 14, 8, 2)
-LENGTH_NAMES = ("La", "Lb", "Lc", "Ld", "Le", "Lf", "Lg", "Lh", "Li", "b", "LcsTL", "LcsTR")
-LENGTH_PAIRS = tuple(zip(TRAILING_EDGE_ENDS[:-1], TRAILING_EDGE_ENDS[1:])) + (
-    (58, 2), (25, 2), (33, 58))
-
-
-def with_bending_scale(params, bending_scale):
-    """``params`` with every tube's bending law factor (a :class:`jaxtube.ScaledLaw` or a
-    :class:`jaxtube.CurvatureScaledLaw`) set to ``bending_scale`` (a traced number: one
-    compiled program serves every scale)."""
-    scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
-    laws = tuple(eqx.tree_at(lambda law: law.factor, law, bending_scale)
-                 if isinstance(law, scaled) else law for law in params.bending_laws)
-    return eqx.tree_at(lambda p: p.bending_laws, params, laws)
-
-
-def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0, law_form="curvature"):
-    """The imported V3 kite with one case's pressure and loads (bending law: Breukels 2011
-    with a factor of ``law_form`` (``LAW_FORMS``), set by :func:`with_bending_scale`;
-    torsion: Breukels 2011). Every case has the same structure and parameter shapes (loads
-    are forces on nodes), so one compiled program per load type solves all."""
-    if law_form not in LAW_FORMS:
-        raise ValueError(f"law_form: expected one of {LAW_FORMS}, got {law_form!r}")
-    if law_form == "curvature":
-        return jt.import_kite_fem(
-            MODEL, pressure_bar=pressure_bar,
-            bending_law=jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0),
-            centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
-    return jt.import_kite_fem(MODEL, pressure_bar=pressure_bar, bending_scale=1.0,
-                              centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
-
-
-def hang(structure, params, log_scale, load_factors=HANG_STAGES):
-    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]``) at bending
-    scale ``exp(log_scale)``: the :class:`jaxtube.Solution` of every stage (the last one is
-    the case's equilibrium). Traceable."""
-    params = with_bending_scale(params, jnp.exp(jnp.reshape(log_scale, ())))
-    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=load_factors)
-
-
-def centre_load_hang(structure, centre, params):
-    """A centre-load case (see the comment at ``ONE_STAGE``) with the tube laws of
-    ``params`` as they are: ``(gravity stages [5], jaxtube.DrivenEquilibrium)``; the driven
-    equilibrium's ``equilibrium`` is the case's. ``centre``: the loaded node's jaxtube index.
-    Traceable."""
-    gravity_only = jt.with_node_dead_load(structure, params, centre, jnp.zeros(3))
-    stages = jt.hang_kite(structure, gravity_only, solver=SOLVER, load_factors=ONE_STAGE)
-    hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
-    driven = jt.drive_to_dead_load(structure, params, centre, params.gravity, initial=hung,
-                                   solver=SOLVER, steps=DRIVE_STEPS,
-                                   max_increment=DRIVE_INCREMENT_M)
-    return stages, driven
-
-
-def hang_centre_load(structure, centre, params, log_scale):
-    """:func:`centre_load_hang` at bending scale ``exp(log_scale)``. Traceable."""
-    return centre_load_hang(structure, centre, with_bending_scale(
-        params, jnp.exp(jnp.reshape(log_scale, ()))))
-
-
-class V3Program:
-    """The compiled V3 programs of this process, each compiled once and shared by every case
-    and scale (same structure and parameter shapes): ``"hang"`` ``(params, log s) ->
-    Solution`` (gravity and tip loads) and ``"centre"`` ``(params, log s) -> (stages,
-    DrivenEquilibrium)`` (centre loads). ``compile_seconds``: each one's compilation."""
-
-    _compiled: dict = {}
-    compile_seconds: dict = {}
-
-    @staticmethod
-    def kind(centre_load_kg) -> str:
-        return "centre" if centre_load_kg > 0 else "hang"
-
-    @classmethod
-    def compile(cls, imported, scale, kind="hang"):
-        """Compile one program once (ahead of any timed solve); programs are per load type
-        and law form (the form is in the parameters' types)."""
-        key = (kind, type(imported.params.bending_laws[0]).__name__)
-        if key not in cls._compiled:
-            started = time.perf_counter()
-            if kind == "hang":
-                function = partial(hang, imported.structure)
-            else:
-                function = partial(hang_centre_load, imported.structure,
-                                   int(imported.node_index[CENTRE_NODE]))
-            cls._compiled[key] = jax.jit(function).lower(
-                imported.params, jnp.log(jnp.asarray(scale, dtype=float))).compile()
-            cls.compile_seconds[key] = time.perf_counter() - started
-        return key
-
-    @classmethod
-    def solve(cls, imported, scale, kind="hang"):
-        key = cls.compile(imported, scale, kind)
-        return cls._compiled[key](imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
-
-
-_SOLVED: dict = {}
-
-
-def case_equilibrium(result):
-    """A program's result as ``(the case's equilibrium: a Solution with a leading stage axis,
-    the gravity stages, the DrivenEquilibrium or None)``; for a centre load the equilibrium
-    is the dead-load solve after the drive (leading axis ``[1]``)."""
-    if isinstance(result, jt.Solution):
-        return result, result, None
-    stages, driven = result
-    return jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium), stages, driven
-
-
-def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False,
-               law_form="curvature"):
-    """Solve one case (a case solved before in this process is not solved again); with
-    ``repeat`` once more, timed again (each program is compiled ahead of its first solve, so
-    every timed solve is warm). Returns a dict: ``imported``, ``solution`` (the case's
-    equilibrium with a leading stage axis: every gravity stage, or for a centre load the
-    dead-load solve after the drive, ``[1]``), ``positions`` ``[247, 3]`` (kite_fem numbering
-    and frame), ``converged`` (the equilibrium reported), ``stage_converged`` and
-    ``newton_iterations`` (per gravity stage, then for a centre load the dead-load solve),
-    ``drive`` (centre loads: the drive's steps, ``None`` otherwise), ``hang`` (in words),
-    ``seconds`` (the timed solve), ``compile_seconds`` (its program's). ``law_form``: the
-    calibration's (``LAW_FORMS``)."""
-    key = (float(pressure_bar), float(centre_load_kg), float(tip_load_kg), float(scale),
-           law_form)
-    kind = V3Program.kind(centre_load_kg)
-    if key in _SOLVED:  # the same case solved before in this process (tests, score+predict)
-        imported, result, seconds = _SOLVED[key]
-    else:
-        imported = import_case(pressure_bar, centre_load_kg, tip_load_kg, law_form)
-        V3Program.compile(imported, scale, kind)  # not timed: every timed solve is warm
-        started = time.perf_counter()
-        result = jax.block_until_ready(V3Program.solve(imported, scale, kind))
-        seconds = time.perf_counter() - started
-        _SOLVED[key] = (imported, result, seconds)
-    if repeat:
-        started = time.perf_counter()
-        result = jax.block_until_ready(V3Program.solve(imported, scale, kind))
-        seconds = time.perf_counter() - started
-    solution, stages, driven = case_equilibrium(result)
-    if driven is None:
-        drive = None
-        hang_words = f"load factors {list(HANG_STAGES)} (gravity and tip loads)"
-    else:
-        accepted = np.asarray(driven.path.converged)
-        drive = {"reached": bool(driven.reached),
-                 "target_force_N": float(driven.target_force),
-                 "control_displacement_m": np.asarray(
-                     driven.path.control_displacement)[accepted].tolist(),
-                 "control_force_N": np.asarray(driven.path.control_force)[accepted].tolist(),
-                 "newton_iterations": np.asarray(driven.path.iterations).tolist(),
-                 "step_converged": accepted.tolist()}
-        hang_words = (f"gravity (load factors {list(ONE_STAGE)}, centre load off), then the "
-                      f"centre load by displacement control of node {CENTRE_NODE} "
-                      f"(jaxtube.drive_to_dead_load, {DRIVE_STEPS} steps of at most "
-                      f"{DRIVE_INCREMENT_M} m), then the dead-load solve")
-    positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
-    stage_converged = np.asarray(stages.converged).tolist()
-    iterations = np.asarray(stages.iterations).tolist()
-    if drive is not None:
-        stage_converged.append(bool(np.asarray(solution.converged)[-1]))
-        iterations.append(int(np.asarray(solution.iterations)[-1]))
-    return dict(imported=imported, solution=solution, positions=positions,
-                converged=bool(np.asarray(solution.converged)[-1]),
-                stage_converged=stage_converged, newton_iterations=iterations, drive=drive,
-                hang=hang_words, seconds=seconds,
-                compile_seconds=V3Program.compile_seconds[
-                    (kind, type(imported.params.bending_laws[0]).__name__)])
-
-
-def measured_lengths(positions) -> np.ndarray:
-    """The 12 lengths [m] (``LENGTH_NAMES``) of kite positions ``[247, 3]``."""
-    positions = np.asarray(positions)
-    return np.asarray([np.linalg.norm(positions[a] - positions[b]) for a, b in LENGTH_PAIRS])
-
-
-def read_measured_lengths() -> dict[int, np.ndarray]:
-    """Case -> the 12 measured lengths [m] of ``validation_data.csv``."""
-    path = DATA / "kite_fem" / "validation_data.csv"
-    with open(path, newline="") as file:
-        rows = list(csv.DictReader(file))
-    out = {}
-    for line, row in enumerate(rows, start=2):
-        try:
-            out[int(row["Load case"])] = np.asarray([float(row[n]) for n in LENGTH_NAMES])
-        except (KeyError, ValueError) as error:
-            raise ValueError(f"{path}: line {line}: expected columns 'Load case', "
-                             f"{', '.join(LENGTH_NAMES)} with numbers [m] ({error})") from None
-    return out
-
-
-def load_calibration(path=CALIBRATION) -> dict:
-    try:
-        calibration = json.loads(Path(path).read_text())
-        float(calibration["bending_scale"])
-        calibration.setdefault("law_form", "moment")  # files written before the form existed
-        if calibration["law_form"] not in LAW_FORMS:
-            raise ValueError(f"'law_form' {calibration['law_form']!r} is not one of "
-                             f"{LAW_FORMS}")
-    except FileNotFoundError:
-        raise SystemExit(f"error: {path} not found; run `python {Path(__file__).name} "
-                         "calibrate` first") from None
-    except (KeyError, ValueError, TypeError) as error:
-        raise SystemExit(f"error: {path}: expected a JSON object with a number "
-                         f"'bending_scale' and a 'law_form' ({error})") from None
-    return calibration
-
-
-def markers_of(case: int):
-    return fitting.load_markers(DATA / "markers" / f"{CASES[case][3]}.csv")
-
 
 # ---------------------------------------------------------------- calibrate
 

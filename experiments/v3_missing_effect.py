@@ -51,7 +51,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import v3_hanging_test as v3  # noqa: E402
+import _v3_model as v3  # noqa: E402
 from _v3_kite_fem import v3_tube_surfaces  # noqa: E402
 
 import fitting  # noqa: E402

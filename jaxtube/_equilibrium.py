@@ -16,6 +16,8 @@ from jax import Array
 
 from ._controls import DisplacementControl
 from ._elements import element_results
+from ._mechanics.constraint_factors import constraint_factors
+from ._mechanics.constraint_pattern import constraint_jacobian_pattern
 from ._mechanics.energy import (
     energy_terms_and_constraints,
     joint_moments,
@@ -23,7 +25,6 @@ from ._mechanics.energy import (
     world_joint_moments,
 )
 from ._mechanics.geometry import ReferenceGeometry, reference_geometry
-from ._mechanics.constraint_pattern import constraint_jacobian_pattern
 from ._mechanics.hessian import lagrangian_hessian_blocks
 from ._mechanics.kinematics import configuration, initial_state, spring_joints
 from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
@@ -214,8 +215,14 @@ def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, fa
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
     pattern = constraint_jacobian_pattern(structure, state0,
                                           None if ctrl is None else ctrl[0])
+    def factors(state, args):
+        p, g, c = args
+        return constraint_factors(structure, g, p,
+                                  None if c is None else (ctrl[0], c[0], c[1]), state)
+
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
-                           hessian=hessian, constraint_pattern=pattern)
+                           hessian=hessian, constraint_pattern=pattern,
+                           constraint_factors=factors if structure.segment_count else None)
     return _post_process(structure, params, geometry, eq, ctrl, factor)
 
 

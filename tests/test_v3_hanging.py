@@ -27,6 +27,7 @@ import pytest
 import jaxtube as jt
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+KITE_FEM = EXPERIMENTS / "data" / "v3_hanging" / "kite_fem"
 HELD = [0, 72, 81, 106, 115, 127, 128, 129]
 MASS_KG = 12.859159
 
@@ -53,11 +54,11 @@ def case1(script):
 def test_measured_length_definitions_reproduce_kite_fem(script):
     """The 12 lengths as defined here give kite_fem's own model_results.csv from its solved
     states (so La..Li, b, LcsTL/TR are what the validation data measure)."""
-    with open(script.DATA / "kite_fem" / "model_results.csv", newline="") as file:
+    with open(KITE_FEM / "model_results.csv", newline="") as file:
         published = {int(r["Load case"]): [float(r[n]) for n in script.LENGTH_NAMES]
                      for r in csv.DictReader(file)}
     for case in (1, 3, 5):
-        state = np.load(script.DATA / "kite_fem" / "states" / f"load_case_{case}.npz")
+        state = np.load(KITE_FEM / "states" / f"load_case_{case}.npz")
         lengths = script.measured_lengths(state["coords_current"].reshape(-1, 3))
         np.testing.assert_allclose(lengths, published[case], rtol=1e-9)
 

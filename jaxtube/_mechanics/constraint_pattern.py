@@ -39,9 +39,8 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     ``jax.flatten_util.ravel_pytree``; ``control_node`` is the node of a displacement
     control (one more row), or ``None``."""
     index = state_index(state)
-    has_tubes = structure.segment_count > 0 and "segment_rotation" in index
-    root = np.asarray(index["root_position"]).reshape(-1) if has_tubes else np.zeros(0, int)
-    if has_tubes:
+    root = _root_columns(structure, index)
+    if root.size:
         per_segment = [np.asarray(index["segment_rotation"])]
         if "segment_shear" in index:
             per_segment.append(np.asarray(index["segment_shear"]))
@@ -51,6 +50,25 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     def segment_end(segment: int) -> np.ndarray:
         return np.concatenate([root, segment_dofs[on_path[segment]].reshape(-1)])
 
+    return _pattern(constraint_groups(structure, index, control_node, root, segment_end))
+
+
+def _root_columns(structure: Structure, index: dict) -> np.ndarray:
+    """The root position's columns in the flat state (none for a structure without tubes)."""
+    if structure.segment_count > 0 and "segment_rotation" in index:
+        return np.asarray(index["root_position"]).reshape(-1)
+    return np.zeros(0, int)
+
+
+def constraint_groups(structure: Structure, index: dict, control_node: int | None,
+                      root: np.ndarray, segment_end) -> list[tuple[int, np.ndarray]]:
+    """The constraints in the order of ``constraints``, as groups ``(row count, columns)``:
+    the columns every row of the group may touch, given the columns of the root position
+    (``root``) and of a segment's end (``segment_end(segment)``). In the state's own columns
+    a segment's end is the root and every unknown on its path
+    (:func:`constraint_jacobian_pattern`); in the factored form it is three auxiliary
+    columns (:mod:`jaxtube._mechanics.constraint_factors`)."""
+
     def tube_node(node: int) -> np.ndarray:
         segment = structure.node_segment[node]
         return root if segment < 0 else segment_end(segment)
@@ -58,8 +76,8 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     def point(p: int) -> np.ndarray:
         return np.asarray(index["point_position"][p]).reshape(-1)
 
-    groups: list[tuple[int, np.ndarray]] = []  # (rows in this group, the columns they use)
-    if has_tubes:
+    groups: list[tuple[int, np.ndarray]] = []
+    if root.size:
         if structure.supports:
             groups.append((3, root))
         for node, _kind in structure.supports[1:]:
@@ -76,7 +94,11 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     if control_node is not None:  # a tube node, or a point node after them
         groups.append((1, tube_node(control_node) if control_node < structure.node_count
                        else point(control_node - structure.node_count)))
+    return groups
 
+
+def _pattern(groups) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, cols)`` of every group's rows times its (distinct) columns."""
     rows, cols, start = [], [], 0
     for count, columns in groups:
         columns = np.unique(columns)

@@ -80,9 +80,10 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
         e, c, _, jacobian = rows
         grad_e, res_g, res_c, _ = _residuals(solver, rows, lam)
         hessian = problem.hessian(z, lam)
-        finite = jnp.all(jnp.isfinite(hessian))
+        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x))
+                                    for x in jax.tree.leaves(hessian)]))
         h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
-        j_scale = jnp.max(jnp.abs(jacobian), initial=1.0)
+        j_scale = route.jacobian_scale(hessian, jacobian)
         mu = jnp.where(level < 0, mu_floor,
                        1e-8 * 10.0 ** jnp.maximum(level, 0).astype(dtype)) * h_scale
         sol, curvature_ok, factors = regularised_step(route, hessian, jacobian, grad_e, c, lam,
@@ -106,7 +107,8 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
             """The next ``trials`` halvings along ``z + a dz + a^2 s`` (``s`` the second-order
             correction, as the backtracking iteration), evaluated together; the largest
             accepted, and the point it reaches."""
-            correction = (second_order_correction(route, factors, c, jacobian, dz, full_c)
+            correction = (second_order_correction(route, factors, c, jacobian @ dz, dz,
+                                                full_c)
                           if c.shape[0] else jnp.zeros_like(dz))
             exponent = halvings + 1 + jnp.arange(trials, dtype=jnp.int32)
             alphas = 0.5 ** exponent.astype(dtype)

@@ -32,9 +32,13 @@ nodes, tension-only lines, pulleys) add their own blocks; nothing here changes.
   symbolic analysis (fill-reducing ordering) is done once per pattern and reused by every
   factorisation, including the implicit-function-theorem tangent's.
 
+- :class:`jaxtube._solver.kkt_augmented.AugmentedSparseKKT`: KLU on a larger, local system
+  for a model that also gives its constraint Jacobian in factored form (tube structures:
+  their constraints' rows are dense along tree paths, which fills the plain route's LU).
+
 The route is chosen by ``NewtonKKT.linear_solver`` (``"auto"``: sparse on the CPU when the
 model gives blocks and ``n + m >= SPARSE_CROSSOVER``, measured in
-``experiments/bench_kkt.py``).
+``experiments/bench_kkt.py``; augmented where the model gives constraint factors).
 
 **klujax and JAX's global configuration.** ``import klujax`` sets ``jax_enable_x64`` and
 ``jax_platform_name = "cpu"`` for the whole process (klujax 0.5.2), which on a GPU machine
@@ -52,8 +56,8 @@ import hashlib
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import lu_factor, lu_solve
 import numpy as np
+from jax.scipy.linalg import lu_factor, lu_solve
 
 #: Size ``n + m`` of the KKT system from which ``linear_solver="auto"`` takes the sparse
 #: route (on the CPU, for a model that gives Hessian blocks). Measured crossover: see
@@ -64,7 +68,7 @@ SPARSE_CROSSOVER = 120
 #: ``linear_solver="auto"`` to keep the sparse route (above it: dense LAPACK).
 SPARSE_MAX_FILL = 0.25
 
-LINEAR_SOLVERS = ("auto", "dense", "sparse")
+LINEAR_SOLVERS = ("auto", "dense", "sparse", "augmented")
 
 _KLUJAX = None
 _SYMBOLS: dict = {}  # pattern digest -> (Ai, Aj, KLUSymbolic), kept alive for the process
@@ -113,8 +117,17 @@ class DenseKKT:
     The Hessian it works with is a dense symmetric ``[n, n]`` matrix (:meth:`hessian`).
     """
 
+    #: The Newton iteration forms the constraint Jacobian for this route's KKT matrix.
+    needs_jacobian = True
+
     def __init__(self, n: int, m: int):
         self.n, self.m = n, m
+
+    @staticmethod
+    def jacobian_scale(hessian, jacobian):
+        """The constraint Jacobian's largest entry (at least 1), the scale of the multipliers'
+        regularisation ``delta`` (``jaxtube._solver.kkt_step``)."""
+        return jnp.max(jnp.abs(jacobian), initial=1.0)
 
     def hessian(self, output):
         """The Hessian in this route's form from a ``hessian`` callable's output."""
@@ -181,16 +194,23 @@ class SparseKKT:
     flat vector of block values (:meth:`hessian`), in the order of those blocks.
     """
 
+    needs_jacobian = True
+    jacobian_scale = staticmethod(DenseKKT.jacobian_scale)
+
     def __init__(self, blocks, n: int, m: int, jacobian_pattern=None):
-        klujax = klujax_module()
-        self.klujax = klujax
+        self.klujax = klujax_module()
         self.n, self.m = n, m
         rows, cols, _ = _flat_blocks(blocks)
         self.block_rows, self.block_cols = rows, cols
         self.on_diagonal = np.flatnonzero(rows == cols)
         self.jac_rows, self.jac_cols = jacobian_entries(n, m, jacobian_pattern)
         size = n + m
-        keys, slot = kkt_pattern(blocks, n, m, jacobian_pattern)
+        self._set_pattern(*kkt_pattern(blocks, n, m, jacobian_pattern), size)
+
+    def _set_pattern(self, keys, slot, size: int) -> None:
+        """The KLU pattern ``(Ai, Aj)`` of the distinct row-major ``keys`` of a ``size``-square
+        matrix, each contribution's ``slot`` in it, and its symbolic analysis (done once
+        per pattern in the process and kept alive in ``_SYMBOLS``)."""
         self.slot = slot.astype(np.int32).reshape(-1)
         self.nnz = int(keys.size)
         self.Ai = (keys // size).astype(np.int32)
@@ -199,7 +219,7 @@ class SparseKKT:
                               + np.int64(size).tobytes()).hexdigest()
         if digest not in _SYMBOLS:
             with jax.ensure_compile_time_eval():
-                symbol = klujax.analyze(self.Ai, self.Aj, size)
+                symbol = self.klujax.analyze(self.Ai, self.Aj, size)
             _SYMBOLS[digest] = (self.Ai, self.Aj, symbol)
         self.symbol = _SYMBOLS[digest][2]
 
@@ -254,23 +274,37 @@ class SparseKKT:
         already in that order (``np.unique`` of row-major keys), so nothing is sorted. The
         primitive's own batching and differentiation rules apply (``vmap``, ``jvp``).
         """
-        klujax = self.klujax
-        x = klujax.solve_with_symbol_f64.bind(
-            jnp.asarray(self.Ai), jnp.asarray(self.Aj), jnp.reshape(kkt, (1, -1)),
+        return self._klu_solve(kkt, rhs)
+
+    def _klu_solve(self, values, rhs):
+        """KLU's solve primitive on this route's pattern: ``x [size]`` with ``A x = rhs``."""
+        x = self.klujax.solve_with_symbol_f64.bind(
+            jnp.asarray(self.Ai), jnp.asarray(self.Aj), jnp.reshape(values, (1, -1)),
             jnp.reshape(rhs, (1, -1, 1)), jnp.asarray(self.symbol.raw, dtype=jnp.uint64))
         return jnp.reshape(x, jnp.shape(rhs))
 
 
 def choose_route(linear_solver: str, blocks_given: bool, size: int,
-                 pattern_entries: int = 0) -> str:
-    """``"dense"`` or ``"sparse"`` for a ``NewtonKKT.linear_solver`` setting, a KKT system of
-    ``size`` unknowns whose sparse pattern (:func:`kkt_pattern`) has ``pattern_entries``."""
+                 pattern_entries: int = 0, factors_given: bool = False) -> str:
+    """``"dense"``, ``"sparse"`` or ``"augmented"`` for a ``NewtonKKT.linear_solver`` setting,
+    a KKT system of ``size`` unknowns whose sparse pattern (:func:`kkt_pattern`) has
+    ``pattern_entries``; ``factors_given``: the model gives its constraint Jacobian in factored
+    form (``jaxtube._solver.kkt_augmented``), which ``"auto"`` then prefers to ``"sparse"``."""
     if linear_solver not in LINEAR_SOLVERS:
         raise ValueError(f"NewtonKKT.linear_solver must be one of {LINEAR_SOLVERS}, got "
                          f"{linear_solver!r}.")
     if linear_solver == "dense":
         return "dense"
     on_cpu = jax.default_backend() == "cpu"
+    if linear_solver == "augmented":
+        if not (blocks_given and factors_given):
+            raise ValueError("NewtonKKT(linear_solver='augmented') needs a model whose hessian "
+                             "returns blocks and that gives constraint factors "
+                             "(jaxtube._solver.kkt_augmented).")
+        if not on_cpu:
+            raise ValueError("NewtonKKT(linear_solver='augmented') runs on the CPU only (KLU); "
+                             f"the default backend is {jax.default_backend()!r}.")
+        return "augmented"
     if linear_solver == "sparse":
         if not blocks_given:
             raise ValueError("NewtonKKT(linear_solver='sparse') needs a model whose hessian "
@@ -285,5 +319,8 @@ def choose_route(linear_solver: str, blocks_given: bool, size: int,
     # (the V3 kite without its pattern: 554,757 entries, a third of its KKT matrix; dense
     # 1.9 s per Newton step against sparse 2.5-3.2 s on the same loaded machine, README).
     mostly_dense = pattern_entries > SPARSE_MAX_FILL * size**2
-    return ("sparse" if blocks_given and on_cpu and size >= SPARSE_CROSSOVER
-            and not mostly_dense else "dense")
+    if not (blocks_given and on_cpu and size >= SPARSE_CROSSOVER):
+        return "dense"
+    if factors_given:
+        return "augmented"
+    return "dense" if mostly_dense else "sparse"

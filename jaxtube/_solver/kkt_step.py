@@ -63,11 +63,12 @@ def regularised_step(route, hessian, jacobian, grad_e, c, lam, mu, h_scale, j_sc
     return sol, ok, factors
 
 
-def second_order_correction(route, factors, c, jacobian, dz, c_full):
+def second_order_correction(route, factors, c, jacobian_times_step, dz, c_full):
     """The correction ``s [n]`` of the module docstring, from the constraints ``c`` at ``z``,
-    ``c_full`` at ``z + dz`` and the step's ``factors``; zeros where it is not finite."""
+    their linearised change ``J dz`` (``jacobian_times_step [m]``), ``c_full`` at ``z + dz``
+    and the step's ``factors``; zeros where it is not finite."""
     n = dz.shape[0]
-    curvature_violation = c_full - c - jacobian @ dz
+    curvature_violation = c_full - c - jacobian_times_step
     rhs = jnp.concatenate([jnp.zeros((n,), dz.dtype), -curvature_violation])
     correction = route.solve_factored(factors, rhs)[:n]
     return jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
