@@ -70,7 +70,6 @@ from _v3_model import (  # noqa: E402
     CALIBRATION,
     CASES,
     FIGURES,
-    HANG_STAGES,
     LAW_FORMS,
     LENGTH_NAMES,
     PEERS,
@@ -79,6 +78,7 @@ from _v3_model import (  # noqa: E402
     TARGETS,
     V3Program,
     hang,
+    hang_stages,
     import_case,
     load_calibration,
     markers_of,
@@ -117,7 +117,7 @@ def implicit_derivative(scale, case=1, law_form="curvature"):
         if centre > 0:
             raise NotImplementedError("the implicit derivative is checked on the calibration "
                                       "case (gravity and tip loads)")
-        return jax.jvp(lambda t: hang(structure, params, t).node_position[-1],
+        return jax.jvp(lambda t: hang(structure, params, t, hang_stages(tip)).node_position[-1],
                        (log_scale,), (jnp.ones_like(log_scale),))
 
     x, dx = positions_and_tangent(imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
@@ -183,7 +183,7 @@ def calibrate(args) -> int:
         "converged": converged,
         "message": str(found.message),
         "evaluations": int(found.nfev),
-        "hang_load_factors": list(HANG_STAGES),
+        "hang_load_factors": list(hang_stages(CASES[1][2])),
         "history": history,
         "seconds": round(time.perf_counter() - started, 1),
         "compile_seconds": sum(V3Program.compile_seconds.values()),
