@@ -33,7 +33,7 @@ from .._elements import state_index
 from .._rotation import rotation_matrix
 from .._solver.kkt_augmented import ConstraintFactors
 from .._structure.structure import GROUND, Structure
-from .constraint_pattern import _pattern, _root_columns, constraint_groups
+from .constraint_pattern import constraint_groups, pattern_of_groups, root_columns
 from .energy import constraints
 from .geometry import ReferenceGeometry
 from .kinematics import Configuration
@@ -45,7 +45,7 @@ def constraint_factors(structure: Structure, geometry: ReferenceGeometry, params
     docstring), or ``None`` for a structure without tubes (its Jacobian is already local).
     ``control``: ``None`` or ``(node, direction [3], displacement [m])``."""
     index = state_index(state)
-    root = _root_columns(structure, index)
+    root = root_columns(structure, index)
     if not root.size:
         return None
     n = sum(int(np.size(v)) for v in jax.tree_util.tree_leaves(index))
@@ -77,7 +77,7 @@ def constraint_factors(structure: Structure, geometry: ReferenceGeometry, params
         return ends[segment]
 
     node = None if control is None else control[0]
-    c_rows, c_cols = _pattern(constraint_groups(structure, index, node, root,
+    c_rows, c_cols = pattern_of_groups(constraint_groups(structure, index, node, root,
                                                 segment_end_columns))
     points = "point_position" in state
     position_cols = np.concatenate(

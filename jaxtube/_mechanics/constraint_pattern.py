@@ -39,7 +39,7 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     ``jax.flatten_util.ravel_pytree``; ``control_node`` is the node of a displacement
     control (one more row), or ``None``."""
     index = state_index(state)
-    root = _root_columns(structure, index)
+    root = root_columns(structure, index)
     if root.size:
         per_segment = [np.asarray(index["segment_rotation"])]
         if "segment_shear" in index:
@@ -50,10 +50,10 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     def segment_end(segment: int) -> np.ndarray:
         return np.concatenate([root, segment_dofs[on_path[segment]].reshape(-1)])
 
-    return _pattern(constraint_groups(structure, index, control_node, root, segment_end))
+    return pattern_of_groups(constraint_groups(structure, index, control_node, root, segment_end))
 
 
-def _root_columns(structure: Structure, index: dict) -> np.ndarray:
+def root_columns(structure: Structure, index: dict) -> np.ndarray:
     """The root position's columns in the flat state (none for a structure without tubes)."""
     if structure.segment_count > 0 and "segment_rotation" in index:
         return np.asarray(index["root_position"]).reshape(-1)
@@ -97,7 +97,7 @@ def constraint_groups(structure: Structure, index: dict, control_node: int | Non
     return groups
 
 
-def _pattern(groups) -> tuple[np.ndarray, np.ndarray]:
+def pattern_of_groups(groups) -> tuple[np.ndarray, np.ndarray]:
     """``(rows, cols)`` of every group's rows times its (distinct) columns."""
     rows, cols, start = [], [], 0
     for count, columns in groups:

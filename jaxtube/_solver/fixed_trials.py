@@ -39,7 +39,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .kkt_step import regularised_step, second_order_correction
+from .kkt_step import all_finite, regularised_step, second_order_correction
 
 
 class Linearisation(NamedTuple):
@@ -80,8 +80,7 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
         e, c, _, jacobian = rows
         grad_e, res_g, res_c, _ = _residuals(solver, rows, lam)
         hessian = problem.hessian(z, lam)
-        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x))
-                                    for x in jax.tree.leaves(hessian)]))
+        finite = all_finite(hessian)
         h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
         j_scale = route.jacobian_scale(hessian, jacobian)
         mu = jnp.where(level < 0, mu_floor,

@@ -36,7 +36,14 @@ such problems take the same iterates as without it.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
+
+
+def all_finite(tree):
+    """Whether every entry of every array in ``tree`` is finite (a route's Hessian may be a
+    matrix, a vector of block values, or a pair of them)."""
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
 
 
 def regularised_step(route, hessian, jacobian, grad_e, c, lam, mu, h_scale, j_scale):

@@ -58,7 +58,7 @@ from jax.flatten_util import ravel_pytree
 from .fixed_trials import Linearisation, fixed_trials_loop
 from .kkt_augmented import AugmentedSparseKKT
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
-from .kkt_step import regularised_step, second_order_correction
+from .kkt_step import all_finite, regularised_step, second_order_correction
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -157,12 +157,6 @@ def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     if chosen == "sparse":
         return SparseKKT(blocks, n, m, pattern)
     return DenseKKT(n, m)
-
-
-def all_finite(tree) -> Array:
-    """Whether every entry of every array in ``tree`` is finite (a route's Hessian may be a
-    matrix, a vector of block values, or a pair of them)."""
-    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
 
 
 def _unless(skip, step, skipped):
