@@ -66,17 +66,40 @@ TARGET_CENTRE_MEAN = 150
 ONE_STAGE = (1.0, 1.0, 1.0, 1.0, 1.0)
 # Tip loads: a proportional continuation (with the curvature-scaled law, case 5's full tip
 # load from the undeformed shape did not converge in 5 x 400 steps; through these stages it
-# converges in 149, 17, 12, 13, 13 steps; gravity first and then the tip load stepped took
-# 400 + 120 steps). Gravity alone hangs in one stage (ONE_STAGE): 80 Newton steps against 216
-# through the continuation, to the same equilibrium (case 1: the same RMS to 0.1 mm). The
-# stages are an argument of the one compiled program (hang_stages).
+# converges; gravity first and then the tip load stepped took more steps: 2026-12-02, 78 +
+# 38 + 16 for case 4 and 78 + 400 (not converged) + 117 for case 5 in two tip stages, 78 +
+# 45 + 35 + 34 + 13 in four). Gravity alone hangs in one stage (ONE_STAGE): 80 Newton steps
+# against 216 through the continuation, to the same equilibrium (case 1: the same RMS to
+# 0.1 mm). The stages are an argument of the one compiled program (hang_stages).
 HANG_STAGES = (0.2, 0.4, 0.6, 0.8, 1.0)
+# The tip-load continuation's first stage with the lines' slack-taut blend ten times the
+# model's width (TIP_FIRST_BLEND, a strain; jaxtube.hang_kite's tension_smoothing), the later
+# stages at the model's own, so the equilibrium reported is the model's. Measured 2026-12-02
+# (Newton steps over the five stages, model's width throughout -> this): 0.15 bar, 2 kg: 120
+# -> 123; 5 kg: 184 -> 120; and, for convergence only (no held-out data was looked at), 0.25
+# bar, 2 kg: 117 -> 125; 5 kg: 165 -> 119; the same equilibria to 1e-12 m. A first width of
+# 3e-4 took 121-126 steps; 1e-2 failed to converge in its second stage on case 5. Gravity
+# alone keeps the model's width (a first stage at 1e-3 took 67 + 20 steps against 78), and
+# so do the centre-load cases (gravity and drive at 1e-3 or 3e-4, then the dead load at the
+# model's width: 146-155 steps against 160 for case 2, 184-191 against 205 for case 3).
+TIP_FIRST_BLEND = 1e-3
 
 
 def hang_stages(tip_load_kg) -> tuple[float, ...]:
     """The load factors of a gravity or tip-load case: ``HANG_STAGES`` with a tip load,
     ``ONE_STAGE`` (gravity alone) without."""
     return HANG_STAGES if tip_load_kg > 0 else ONE_STAGE
+
+
+def hang_blends(tip_load_kg, model_blend) -> tuple[float, ...]:
+    """The lines' slack-taut blend width per stage (strain, ``[5]``): ``TIP_FIRST_BLEND`` for
+    the first stage of a tip-load case, ``model_blend`` (``params.elements
+    .tension_smoothing``) for every other stage."""
+    model_blend = float(model_blend)
+    first = TIP_FIRST_BLEND if tip_load_kg > 0 else model_blend
+    return (first,) + (model_blend,) * 4
+
+
 # The calibrated law's form: "curvature" (jaxtube.CurvatureScaledLaw: the 2011 curve's
 # stiffness x s, its moments kept) or "moment" (jaxtube.ScaledLaw: the whole curve x s, as the
 # peers scale it). experiments/v3_missing_effect.py chose between them (README).
@@ -119,13 +142,15 @@ def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0, law_form="cur
                               centre_load_kg=centre_load_kg, tip_load_kg=tip_load_kg)
 
 
-def hang(structure, params, log_scale, load_factors=HANG_STAGES):
-    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]``, a traced
-    array or a tuple: :func:`hang_stages`) at bending scale ``exp(log_scale)``: the
+def hang(structure, params, log_scale, load_factors=HANG_STAGES, blends=None):
+    """The hung kite (:func:`jaxtube.hang_kite` through ``load_factors`` ``[5]`` and the
+    lines' blend widths ``blends`` ``[5]`` (``None``: the model's own), traced arrays or
+    tuples: :func:`hang_stages`, :func:`hang_blends`) at bending scale ``exp(log_scale)``: the
     :class:`jaxtube.Solution` of every stage (the last one is the case's equilibrium).
     Traceable."""
     params = with_bending_scale(params, jnp.exp(jnp.reshape(log_scale, ())))
-    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=load_factors)
+    return jt.hang_kite(structure, params, solver=SOLVER, load_factors=load_factors,
+                        tension_smoothing=blends)
 
 
 def centre_load_hang(structure, centre, params):
@@ -174,21 +199,32 @@ class V3Program:
                 function = partial(hang_centre_load, imported.structure,
                                    int(imported.node_index[CENTRE_NODE]))
             arguments = (imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
-            if kind == "hang":  # the load factors: one program for one stage and five
-                arguments += (jnp.asarray(HANG_STAGES, dtype=float),)
+            if kind == "hang":  # load factors and blends: one program for every schedule
+                arguments += (jnp.asarray(HANG_STAGES, dtype=float),
+                              jnp.asarray(hang_blends(1.0, _model_blend(imported)),
+                                          dtype=float))
             cls._compiled[key] = jax.jit(function).lower(*arguments).compile()
             cls.compile_seconds[key] = time.perf_counter() - started
         return key
 
     @classmethod
-    def solve(cls, imported, scale, kind="hang", load_factors=HANG_STAGES):
-        """Run a compiled program; ``load_factors`` (``kind == "hang"`` only): the stages,
-        :func:`hang_stages`."""
+    def solve(cls, imported, scale, kind="hang", load_factors=HANG_STAGES, blends=None):
+        """Run a compiled program; ``load_factors`` and ``blends`` (``kind == "hang"`` only;
+        ``None``: the model's own width): the stages, :func:`hang_stages`,
+        :func:`hang_blends`."""
         key = cls.compile(imported, scale, kind)
         arguments = (imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
         if kind == "hang":
-            arguments += (jnp.asarray(load_factors, dtype=float),)
+            if blends is None:
+                blends = hang_blends(0.0, _model_blend(imported))
+            arguments += (jnp.asarray(load_factors, dtype=float),
+                          jnp.asarray(blends, dtype=float))
         return cls._compiled[key](*arguments)
+
+
+def _model_blend(imported) -> float:
+    """The imported model's own slack-taut blend width of its lines (strain)."""
+    return float(imported.params.elements.tension_smoothing)
 
 
 _SOLVED: dict = {}
@@ -225,19 +261,24 @@ def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False,
     else:
         imported = import_case(pressure_bar, centre_load_kg, tip_load_kg, law_form)
         V3Program.compile(imported, scale, kind)  # not timed: every timed solve is warm
+        blends = hang_blends(tip_load_kg, _model_blend(imported))
         started = time.perf_counter()
-        result = jax.block_until_ready(V3Program.solve(imported, scale, kind, load_factors))
+        result = jax.block_until_ready(V3Program.solve(imported, scale, kind, load_factors,
+                                                       blends))
         seconds = time.perf_counter() - started
         _SOLVED[key] = (imported, result, seconds)
+    blends = hang_blends(tip_load_kg, _model_blend(imported))
     if repeat:
         started = time.perf_counter()
-        result = jax.block_until_ready(V3Program.solve(imported, scale, kind, load_factors))
+        result = jax.block_until_ready(V3Program.solve(imported, scale, kind, load_factors,
+                                                       blends))
         seconds = time.perf_counter() - started
     solution, stages, driven = case_equilibrium(result)
     if driven is None:
         drive = None
         hang_words = (f"load factors {list(load_factors)} ("
-                      + ("gravity and tip loads)" if tip_load_kg > 0 else "gravity alone)"))
+                      + ("gravity and tip loads)" if tip_load_kg > 0 else "gravity alone)")
+                      + f", the lines' blend widths {list(blends)}")
     else:
         accepted = np.asarray(driven.path.converged)
         drive = {"reached": bool(driven.reached),

