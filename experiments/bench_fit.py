@@ -53,7 +53,7 @@ def run(pivots, repeats, lines, effects=()):
         warm.append(time.perf_counter() - t0)
     c = result.convergence
     free = len(result.problem.free_index)
-    held = len(c.held) if c.held else 0
+    held = len(c.held)
     named = ", ".join(effect.name for effect in effects) or "none"
     lines.append(
         f"pivots {pivots}, effects: {named}: {free} free coordinates ({held} held); "

@@ -78,7 +78,7 @@ def constraint_factors(structure: Structure, geometry: ReferenceGeometry, params
 
     node = None if control is None else control[0]
     c_rows, c_cols = pattern_of_groups(constraint_groups(structure, index, node, root,
-                                                segment_end_columns))
+                                                         segment_end_columns))
     points = "point_position" in state
     position_cols = np.concatenate(
         [root, ends.reshape(-1)]

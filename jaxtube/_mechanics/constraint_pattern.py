@@ -50,7 +50,8 @@ def constraint_jacobian_pattern(structure: Structure, state: dict,
     def segment_end(segment: int) -> np.ndarray:
         return np.concatenate([root, segment_dofs[on_path[segment]].reshape(-1)])
 
-    return pattern_of_groups(constraint_groups(structure, index, control_node, root, segment_end))
+    return pattern_of_groups(constraint_groups(structure, index, control_node, root,
+                                               segment_end))
 
 
 def root_columns(structure: Structure, index: dict) -> np.ndarray:

@@ -40,7 +40,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .kkt_step import all_finite, regularised_step, second_order_correction
+from .kkt_step import all_finite, first_trial_exponent, regularised_step, second_order_correction
 
 
 class Linearisation(NamedTuple):
@@ -110,9 +110,8 @@ def fixed_trials_loop(problem: Linearisation, solver, z0, lam0, mu_floor: float)
             correction = (second_order_correction(route, factors, c, jacobian @ dz, dz,
                                                 full_c)
                           if c.shape[0] else jnp.zeros_like(dz))
-            # The corrected full step (alpha = 1) first, where there is a correction.
-            first = jnp.where(jnp.any(correction != 0.0), 0, 1).astype(jnp.int32)
-            exponent = halvings + first + jnp.arange(trials, dtype=jnp.int32)
+            exponent = (halvings + first_trial_exponent(correction)
+                        + jnp.arange(trials, dtype=jnp.int32))
             alphas = 0.5 ** exponent.astype(dtype)
             e_t, c_t = jax.vmap(
                 lambda a: problem.merit_parts(z + a * dz + a**2 * correction))(alphas)

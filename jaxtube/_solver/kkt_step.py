@@ -73,6 +73,13 @@ def regularised_step(route, hessian, jacobian, grad_e, c, lam, mu, h_scale, j_sc
     return sol, ok, factors
 
 
+def first_trial_exponent(correction):
+    """The exponent ``j`` of the line search's first trial ``alpha = 2^-j`` after a refused
+    full step (int32): ``0``, the corrected full step ``z + dz + s``, where there is a
+    correction; ``1`` without one (``alpha = 1`` would be the refused step again)."""
+    return jnp.where(jnp.any(correction != 0.0), 0, 1).astype(jnp.int32)
+
+
 def second_order_correction(route, factors, c, jacobian_times_step, dz, c_full):
     """The correction ``s [n]`` of the module docstring, from the constraints ``c`` at ``z``,
     their linearised change ``J dz`` (``jacobian_times_step [m]``), ``c_full`` at ``z + dz``

@@ -60,7 +60,7 @@ from jax.flatten_util import ravel_pytree
 from .fixed_trials import Linearisation, fixed_trials_loop
 from .kkt_augmented import AugmentedSparseKKT
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
-from .kkt_step import all_finite, regularised_step, second_order_correction
+from .kkt_step import all_finite, first_trial_exponent, regularised_step, second_order_correction
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -333,9 +333,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                                                   full_c),
                 jnp.zeros_like(dz)))
 
-            # The first trial is the corrected full step z + dz + s (alpha = 1), unless
-            # there is no correction (then it is the refused full step): then the halvings.
-            first = jnp.where(jnp.any(correction != 0.0), 0, 1).astype(jnp.int32)
+            first = first_trial_exponent(correction)
 
             def ls_cond(lc):
                 alpha, accepted, exponent = lc
