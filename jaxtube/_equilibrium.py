@@ -29,6 +29,7 @@ from ._mechanics.hessian import lagrangian_hessian_blocks
 from ._mechanics.kinematics import configuration, initial_state, spring_joints
 from ._solver.newton_kkt import RESULT_MESSAGES, NewtonKKT, solve_equilibrium
 from ._structure.structure import GROUND, JOINT_GROUND, Structure, StructureParameters
+from ._traced_once import jit_keeping_static_outputs
 
 
 class Solution(eqx.Module):
@@ -201,29 +202,54 @@ def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, fa
     """One equilibrium from ``state0`` (multipliers ``lam0`` or ``None``), reported as a
     :class:`Solution`. ``ctrl`` is ``None`` or ``(node, direction [3], displacement [m])``;
     ``factor`` is the load factor to report (the loads in ``params`` are already scaled)."""
+    node = None if ctrl is None else ctrl[0]
+
     def objective(state, args):
-        p, g, c = args
-        control = None if c is None else (ctrl[0], c[0], c[1])
-        return energy_terms_and_constraints(structure, g, state, p, control)
+        return _objective(state, args, structure=structure, control_node=node)
 
     def hessian(state, multipliers, args):
-        p, g, c = args
-        return lagrangian_hessian_blocks(structure, g, p,
-                                         None if c is None else (ctrl[0], c[0], c[1]),
-                                         state, multipliers)
+        return _hessian(state, multipliers, args, structure=structure, control_node=node)
+
+    def factors(state, args):
+        return _factors(state, args, structure=structure, control_node=node)
 
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
-    pattern = constraint_jacobian_pattern(structure, state0,
-                                          None if ctrl is None else ctrl[0])
-    def factors(state, args):
-        p, g, c = args
-        return constraint_factors(structure, g, p,
-                                  None if c is None else (ctrl[0], c[0], c[1]), state)
-
+    pattern = constraint_jacobian_pattern(structure, state0, node)
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,
                            hessian=hessian, constraint_pattern=pattern,
                            constraint_factors=factors if structure.segment_count else None)
     return _post_process(structure, params, geometry, eq, ctrl, factor)
+
+
+# The model as the solver sees it, ``args = (params, geometry, (direction, displacement) or
+# None)``: each traced once per structure, control node and shape (``jaxtube._traced_once``).
+
+
+def _control(args, node):
+    """``None`` or ``(node, direction [3], displacement [m])`` from the solver's args."""
+    c = args[2]
+    return None if c is None else (node, c[0], c[1])
+
+
+def _model_objective(state, args, *, structure, control_node):
+    return energy_terms_and_constraints(structure, args[1], state, args[0],
+                                        _control(args, control_node))
+
+
+def _model_hessian(state, multipliers, args, *, structure, control_node):
+    return lagrangian_hessian_blocks(structure, args[1], args[0],
+                                     _control(args, control_node), state, multipliers)
+
+
+def _model_factors(state, args, *, structure, control_node):
+    return constraint_factors(structure, args[1], args[0], _control(args, control_node),
+                              state)
+
+
+_STATIC = ("structure", "control_node")
+_objective = jit_keeping_static_outputs(_model_objective, _STATIC)
+_hessian = jit_keeping_static_outputs(_model_hessian, _STATIC)
+_factors = jit_keeping_static_outputs(_model_factors, _STATIC)
 
 
 def check_converged(solution: Solution, what: str = "solve") -> None:

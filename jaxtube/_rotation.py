@@ -14,6 +14,7 @@ zero. The logarithm uses the same device.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 from jax import Array
 
@@ -51,6 +52,7 @@ def skew(vector: Array) -> Array:
     )
 
 
+@jax.jit
 def _rodrigues_coefficients(angle_sq: Array) -> tuple[Array, Array]:
     """``a = sin t / t`` and ``b = (1 - cos t) / t^2`` as smooth functions of ``t^2``."""
     small = angle_sq < _SMALL_ANGLE_SQ
@@ -64,6 +66,7 @@ def _rodrigues_coefficients(angle_sq: Array) -> tuple[Array, Array]:
     return jnp.where(small, a_small, a_large), jnp.where(small, b_small, b_large)
 
 
+@jax.jit
 def rotation_matrix(rotation_vector: Array) -> Array:
     """Exponential map ``so(3) -> SO(3)``; ``[..., 3] -> [..., 3, 3]`` (Rodrigues' formula)."""
     angle_sq = jnp.sum(rotation_vector * rotation_vector, axis=-1)
@@ -75,6 +78,7 @@ def rotation_matrix(rotation_vector: Array) -> Array:
             skew(rotation_vector) + b[..., None, None] * outer)
 
 
+@jax.jit
 def rotation_vector(rotation: Array) -> Array:
     """Logarithm ``SO(3) -> so(3)`` for rotation angles below pi; ``[..., 3, 3] -> [..., 3]``.
 

@@ -49,8 +49,10 @@ import numpy as np
 from .kkt_linear import SparseKKT, _flat_blocks, klujax_module
 
 
+@jax.tree_util.register_pytree_node_class
 class ConstraintFactors:
-    """The constraint Jacobian of a model in factored form (module docstring).
+    """The constraint Jacobian of a model in factored form (module docstring); a PyTree
+    (``aux_count`` static), so a model can compute it inside ``jax.jit``.
 
     Attributes:
         aux_count: ``p``, the number of auxiliary unknowns ``w`` (and of tree relations).
@@ -65,6 +67,13 @@ class ConstraintFactors:
         self.aux_count = int(aux_count)
         self.tree = tree
         self.constraint = constraint
+
+    def tree_flatten(self):
+        return (self.tree, self.constraint), self.aux_count
+
+    @classmethod
+    def tree_unflatten(cls, aux_count, children):
+        return cls(aux_count, *children)
 
 
 class AugmentedSparseKKT(SparseKKT):

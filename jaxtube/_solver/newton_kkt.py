@@ -139,6 +139,32 @@ class EquilibriumResult(eqx.Module):
     constraint_violation: Array
 
 
+def _lagrangian_hessian(objective, hessian_fn, route, args, z, lam):
+    """The Hessian of the Lagrangian in the route's form (dense matrix or flat block
+    values): the model's (``hessian_fn``), or dense forward-over-reverse autodiff."""
+    if hessian_fn is None:
+        def lagrangian(zz):
+            terms, c = objective(zz, args)
+            return jnp.sum(terms) + jnp.dot(lam, c)
+
+        return route.hessian(jax.hessian(lagrangian)(z))
+    if isinstance(route, AugmentedSparseKKT):
+        return route.hessian(hessian_fn(z, lam, args), hessian_fn.constraint_factors(z, args))
+    return route.hessian(hessian_fn(z, lam, args))
+
+
+def _kkt_at_solution(objective, hessian_fn, route, args, z, lam):
+    """KKT matrix (route's form) at a solution ``(z, lam)``, for the implicit tangent: the
+    Hessian and the constraint Jacobian with the floor regularisation ``MU_FLOOR``."""
+    jacobian = (jax.jacrev(lambda zz: objective(zz, args)[1])(z) if route.needs_jacobian
+                else None)
+    hessian = _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
+    h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+    j_scale = route.jacobian_scale(hessian, jacobian)
+    mu = MU_FLOOR * h_scale
+    return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
+
+
 def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     """The linear-algebra route (``jaxtube._solver.kkt_linear``) for this problem, chosen at trace
     time. A model's hessian is traced once here for its static block positions (its
@@ -227,23 +253,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         return e + rho * jnp.sum(jnp.abs(c))
 
     def lagrangian_hessian(z, lam):
-        """The Hessian in the route's form (dense matrix or flat block values)."""
-        if hessian_fn is None:
-            return route.hessian(jax.hessian(lambda zz: lagrangian_and_parts(zz, lam)[0])(z))
-        if isinstance(route, AugmentedSparseKKT):
-            return route.hessian(hessian_fn(z, lam, args),
-                                 hessian_fn.constraint_factors(z, args))
-        return route.hessian(hessian_fn(z, lam, args))
-
-    def kkt_at_solution(z, lam):
-        """KKT matrix (route's form) at the returned point, for the implicit tangent."""
-        jacobian = (jax.jacrev(lambda zz: objective(zz, args)[1])(z) if route.needs_jacobian
-                    else None)
-        hessian = lagrangian_hessian(z, lam)
-        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
-        j_scale = route.jacobian_scale(hessian, jacobian)
-        mu = MU_FLOOR * h_scale
-        return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
+        return _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
 
     if solver.globalisation == "fixed_trials":
         def rows(z):
@@ -256,8 +266,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             route=route, unless=_unless)
         z, lam, steps, code, res_g, res_c = fixed_trials_loop(problem, solver, z0, lam0,
                                                               MU_FLOOR)
-        return (z, lam, (code == 0, steps, code, res_g, res_c),
-                (lambda: kkt_at_solution(z, lam), route))
+        return z, lam, (code == 0, steps, code, res_g, res_c)
 
     def body(carry):
         z, lam, rho, step, _, _, _, _ = carry
@@ -375,14 +384,12 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
             jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype))
     z, lam, _, steps, _, code, res_g, res_c = jax.lax.while_loop(cond, body, init)
-    return (z, lam, (code == 0, steps, code, res_g, res_c),
-            (lambda: kkt_at_solution(z, lam), route))
+    return z, lam, (code == 0, steps, code, res_g, res_c)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
 def _equilibrium(objective, hessian_fn, solver, args, z0, lam0):
-    z, lam, stats, _ = _newton(objective, hessian_fn, solver, args, z0, lam0)
-    return z, lam, stats
+    return _newton(objective, hessian_fn, solver, args, z0, lam0)
 
 
 def _kkt_residual(objective, z, lam, args):
@@ -398,15 +405,19 @@ def _kkt_residual(objective, z, lam, args):
 def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     args, z0, lam0 = primals
     args_dot = tangents[0]
-    z, lam, stats, (kkt_at_solution, route) = _newton(objective, hessian_fn, solver, args, z0,
-                                                      lam0)
+    # The solve itself as the primitive it is (not re-traced under the tangents'
+    # transformations: under ``jacfwd`` the Newton loops stay unbatched over the tangent
+    # basis), then the tangent by the implicit function theorem.
+    z, lam, stats = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
     # The KKT matrix at the solution, solved on the route of the Newton iterations (the
     # sparse route reuses its symbolic analysis).
-    solution_dot = -route.solve(kkt_at_solution(), residual_dot)
+    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
+    solution_dot = -route.solve(kkt, residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
