@@ -21,6 +21,10 @@ from ._solver.newton_kkt import NewtonKKT
 from ._structure.structure import Structure, StructureParameters
 
 
+#: Largest step of the secant predictor, relative to the last step (:func:`solve_path`).
+MAX_EXTRAPOLATION = 2.0
+
+
 def solve_path(
     structure: Structure,
     params: StructureParameters,
@@ -37,24 +41,38 @@ def solve_path(
     if isinstance(path, DisplacementControl):
         lam0 = jnp.zeros((m_support + 1,))
 
-        def step(carry, value):
-            state, lam = carry
+        def solve(start, value):
             ctrl = (path.node, path.direction, value)
-            sol = solve_load_level(structure, params, geometry, ctrl, state, lam, solver, 1.0)
-            return (sol.state, sol.multipliers), sol
+            return solve_load_level(structure, params, geometry, ctrl, start[0], start[1],
+                                    solver, 1.0)
 
-        _, sols = jax.lax.scan(step, (state0, lam0), path.displacements)
-        return sols
+        values = path.displacements
+    else:
+        lam0 = jnp.zeros((m_support,))
 
-    lam0 = jnp.zeros((m_support,))
+        def solve(start, factor):
+            return solve_load_level(structure, scale_loads(params, factor), geometry, None,
+                                    start[0], start[1], solver, factor)
 
-    def step(carry, factor):
-        state, lam = carry
-        scaled = scale_loads(params, factor)
-        sol = solve_load_level(structure, scaled, geometry, None, state, lam, solver, factor)
-        return (sol.state, sol.multipliers), sol
+        values = path.load_factors
 
-    _, sols = jax.lax.scan(step, (state0, lam0), path.load_factors)
+    def step(carry, value):
+        # Secant predictor: the start extrapolates the last two solutions to this step's
+        # value when both converged (the last solution alone otherwise).
+        current, previous, value_now, value_before, now_ok, before_ok = carry
+        span = value_now - value_before
+        ratio = jnp.where(now_ok & before_ok & (span != 0.0),
+                          (value - value_now) / jnp.where(span != 0.0, span, 1.0), 0.0)
+        ratio = jnp.clip(ratio, -MAX_EXTRAPOLATION, MAX_EXTRAPOLATION)
+        start = jax.tree_util.tree_map(lambda a, b: a + ratio * (a - b), current, previous)
+        sol = solve(start, value)
+        return ((sol.state, sol.multipliers), current, value, value_now, sol.converged,
+                now_ok), sol
+
+    zero = jnp.zeros((), float)
+    no = jnp.zeros((), bool)
+    init = ((state0, lam0), (state0, lam0), zero, zero, no, no)
+    _, sols = jax.lax.scan(step, init, values)
     return sols
 
 
