@@ -30,7 +30,6 @@ from collections.abc import Callable
 import jax
 import numpy as np
 
-
 #: The empty abstract mesh, set explicitly around every call (module docstring).
 _NO_MESH = jax.sharding.AbstractMesh((), ())
 

@@ -143,11 +143,7 @@ def _lagrangian_hessian(objective, hessian_fn, route, args, z, lam):
     """The Hessian of the Lagrangian in the route's form (dense matrix or flat block
     values): the model's (``hessian_fn``), or dense forward-over-reverse autodiff."""
     if hessian_fn is None:
-        def lagrangian(zz):
-            terms, c = objective(zz, args)
-            return jnp.sum(terms) + jnp.dot(lam, c)
-
-        return route.hessian(jax.hessian(lagrangian)(z))
+        return route.hessian(jax.hessian(lambda zz: _lagrangian(objective, zz, lam, args)[0])(z))
     if isinstance(route, AugmentedSparseKKT):
         return route.hessian(hessian_fn(z, lam, args), hessian_fn.constraint_factors(z, args))
     return route.hessian(hessian_fn(z, lam, args))
@@ -392,12 +388,14 @@ def _equilibrium(objective, hessian_fn, solver, args, z0, lam0):
     return _newton(objective, hessian_fn, solver, args, z0, lam0)
 
 
-def _kkt_residual(objective, z, lam, args):
-    def lagrangian(zz):
-        terms, c = objective(zz, args)
-        return jnp.sum(terms) + jnp.dot(lam, c), c
+def _lagrangian(objective, z, lam, args):
+    """``(E + lam . c, c)`` at ``z``."""
+    terms, c = objective(z, args)
+    return jnp.sum(terms) + jnp.dot(lam, c), c
 
-    grad, c = jax.grad(lagrangian, has_aux=True)(z)
+
+def _kkt_residual(objective, z, lam, args):
+    grad, c = jax.grad(lambda zz: _lagrangian(objective, zz, lam, args), has_aux=True)(z)
     return jnp.concatenate([grad, c])
 
 
