@@ -411,8 +411,8 @@ def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
-    # The KKT matrix at the solution, solved on the route of the Newton iterations (the
-    # sparse route reuses its symbolic analysis).
+    # The KKT matrix at the solution, solved on the route of the Newton iterations (chosen
+    # again here, at trace time, by the same static rule).
     route = _kkt_route(hessian_fn, solver, args, z0, lam0)
     kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
     solution_dot = -route.solve(kkt, residual_dot)
