@@ -9,6 +9,8 @@ by the implicit function theorem. :func:`check_converged` turns failed steps int
 
 from __future__ import annotations
 
+from functools import partial
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -203,16 +205,8 @@ def solve_load_level(structure, params, geometry, ctrl, state0, lam0, solver, fa
     :class:`Solution`. ``ctrl`` is ``None`` or ``(node, direction [3], displacement [m])``;
     ``factor`` is the load factor to report (the loads in ``params`` are already scaled)."""
     node = None if ctrl is None else ctrl[0]
-
-    def objective(state, args):
-        return _objective(state, args, structure=structure, control_node=node)
-
-    def hessian(state, multipliers, args):
-        return _hessian(state, multipliers, args, structure=structure, control_node=node)
-
-    def factors(state, args):
-        return _factors(state, args, structure=structure, control_node=node)
-
+    objective, hessian, factors = (partial(model, structure=structure, control_node=node)
+                                   for model in (_objective, _hessian, _factors))
     c_args = None if ctrl is None else (ctrl[1], ctrl[2])
     pattern = constraint_jacobian_pattern(structure, state0, node)
     eq = solve_equilibrium(objective, state0, (params, geometry, c_args), solver, lam0,

@@ -52,7 +52,6 @@ def skew(vector: Array) -> Array:
     )
 
 
-@jax.jit
 def _rodrigues_coefficients(angle_sq: Array) -> tuple[Array, Array]:
     """``a = sin t / t`` and ``b = (1 - cos t) / t^2`` as smooth functions of ``t^2``."""
     small = angle_sq < _SMALL_ANGLE_SQ
