@@ -23,6 +23,7 @@ from ._bench.effects import (
     Reinforcement,
     SelfWeight,
     Shear,
+    UnwrinkledLinearity,
 )
 from ._bench.rig import DEFAULT_SEGMENTS, CantileverRig, RigPrediction, TubeModel, batch_curves
 from ._bench.scaling import (
@@ -87,6 +88,7 @@ from ._sweep.sweep import regime_boundaries, sweep
 __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
     "RadiusScaling", "Reinforcement", "SelfWeight", "Shear", "ScoreTest", "score_test",
+    "UnwrinkledLinearity",
     "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
     "ResidualVerdict", "compare", "cross_validated_rmse", "default_candidates", "diagnose",
     "fit_problem",

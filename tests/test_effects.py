@@ -6,11 +6,13 @@ solver with the same physics; at their null values the effects must leave the pl
 cantilever unchanged.
 """
 
+import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import scipy.interpolate
 
 import jaxtube as jt
 from fitting import continuum
@@ -76,3 +78,63 @@ def test_effect_needing_a_missing_rig_feature_is_refused():
     model = TubeModel(jt.LinearLaw(EI), effects=(fx.Shear(1e-4),))
     with pytest.raises(ValueError, match="needs a rig with features"):
         CantileverRig(segments=4).specimen_parameters(model, PRESSURE, RADIUS, LENGTH)
+
+
+def _spline_moment_by_hand(curvatures, moments, share, residual_ratio):
+    """M(kappa) of a three-pivot SplineLaw at its reference specimen, in numpy and scipy
+    (docs/physics.md, section 1.1): Fritsch-Butland knot slopes, the residual slope at the
+    last pivot, the first piece ``a k + b max(k - k_0, 0)^3``, cubic Hermite pieces, a
+    linear tail."""
+    widths = np.diff(np.concatenate([[0.0], curvatures]))
+    secants = np.diff(np.concatenate([[0.0], moments])) / widths
+    before, after = 2 * widths[1:] + widths[:-1], widths[1:] + 2 * widths[:-1]
+    interior = (before + after) / (before / secants[:-1] + after / secants[1:])
+    residual = 1.0 / (1.0 / (residual_ratio * secants[0]) + 1.0 / (3.0 * secants[-1]))
+    slopes = np.concatenate([interior, [residual]])
+    k1, width = curvatures[0], (1.0 - share) * curvatures[0]
+    a = (3.0 * moments[0] - slopes[0] * width) / (3.0 * k1 - width)
+    b = (moments[0] - a * k1) / width**3
+    hermite = scipy.interpolate.CubicHermiteSpline(curvatures, moments, slopes)
+
+    def moment(kappa):
+        k = abs(kappa)
+        if k <= k1:
+            value = a * k + b * max(k - share * k1, 0.0) ** 3
+        elif k <= curvatures[-1]:
+            value = float(hermite(k))
+        else:
+            value = moments[-1] + residual * (k - curvatures[-1])
+        return math.copysign(value, kappa)
+
+    return moment
+
+
+def test_unwrinkled_linearity_matches_continuum_solver():
+    """The model-structure extension in the rig: its law (the spline with ``linear_share``)
+    solved by the continuum shooting solver gives the same tip forces; at its null the rig
+    is the plain spline's."""
+    law = jt.SplineLaw.from_pivots([0.02, 0.3, 1.5], [12.0, 20.0, 24.0], PRESSURE, RADIUS,
+                                   pivots_per_regime=(1, 1, 1))  # paper form, B = 1
+    rig = CantileverRig(segments=20)
+    deflections = jnp.asarray([0.002, 0.01, 0.03])  # the root passes k_0 and k_1
+
+    @jax.jit
+    def forces(effects):
+        return rig.curve(TubeModel(law, jt.LinearLaw(150.0), effects), PRESSURE, RADIUS,
+                         LENGTH, deflections).force
+
+    share = 0.7
+    curvatures, moments = np.array([0.02, 0.3, 1.5]), np.array([12.0, 20.0, 24.0])
+    moment = _spline_moment_by_hand(curvatures, moments, share, residual_ratio=0.01)
+
+    reference = continuum.CantileverModel(LENGTH, continuum.law_from_moment(
+        moment, curvature_scale=0.02))
+    expected = np.array([reference.tip_force(float(u)) for u in deflections])
+    np.testing.assert_allclose(np.asarray(forces((fx.UnwrinkledLinearity(share),))),
+                               expected, rtol=3e-3)
+    plain = np.asarray(forces(()))
+    np.testing.assert_allclose(np.asarray(forces((fx.UnwrinkledLinearity(0.0),))), plain,
+                               rtol=1e-12)  # the same law, rounded differently
+    # Linear over 70 % of the first regime, the tube starts softer than the odd cubic, whose
+    # initial slope (3 M_1 / k_1 - d_1) / 2 exceeds the secant M_1 / k_1.
+    assert expected[0] < plain[0]

@@ -92,12 +92,40 @@ _TORSION_TWIST = -17703.0 * RADIUS**4 * math.log(0.2) + 358.05 * RADIUS**3 + 0.0
 _BENDING_2011_STIFFNESS = ((271865251.42 * RADIUS**5 + 215.93) * 0.2 + 14021.79 * RADIUS
                            - 589.05) / 3.0
 
+# A one-pivot-per-regime spline, linear over 60 % of its first pivot; its initial stiffness
+# by hand: the Fritsch-Butland slope d_1 at the first pivot, then a = (3 M_1 - d_1 w) /
+# (3 k_1 - w), w = (1 - 0.6) k_1 (SplineLaw docstring).
+_SHARE_PIVOTS = (np.array([0.05, 0.5, 2.0]), np.array([10.0, 18.0, 20.0]))
+_SHARE_LAW = SplineLaw.from_pivots(*_SHARE_PIVOTS, PRESSURE, RADIUS, pivots_per_regime=(1, 1, 1),
+                                   linear_share=0.6)
+
+
+def _first_pivot_slope(curvatures, moments):
+    widths = np.diff(np.concatenate([[0.0], curvatures]))
+    secants = np.diff(np.concatenate([[0.0], moments])) / widths
+    weight_before, weight_after = 2 * widths[1] + widths[0], widths[1] + 2 * widths[0]
+    return (weight_before + weight_after) / (weight_before / secants[0]
+                                             + weight_after / secants[1])
+
+
+def _first_piece(curvatures, moments, share):
+    """(a, b, k_0) of M = a k + b max(k - k_0, 0)^3 on [0, k_1], by hand."""
+    k1, m1 = curvatures[0], moments[0]
+    d1 = _first_pivot_slope(curvatures, moments)
+    width = (1.0 - share) * k1
+    a = (3.0 * m1 - d1 * width) / (3.0 * k1 - width)
+    return a, (m1 - a * k1) / width**3, share * k1
+
+
+_SHARE_STIFFNESS = _first_piece(*_SHARE_PIVOTS, 0.6)[0]
+
 LAW_CASES = {
     "linear": (LinearLaw(150.0), 150.0, 1.0),
     "tension_field": (TensionFieldLaw(WALL_MODULUS), BENDING_STIFFNESS,
                       300.0 * WRINKLING_CURVATURE),
     "spline_separate": (SplineLaw.from_tension_field(WALL_MODULUS, PRESSURE, RADIUS),
                         BENDING_STIFFNESS, 600.0 * WRINKLING_CURVATURE),
+    "spline_linear_share": (_SHARE_LAW, _SHARE_STIFFNESS, 3.0),
     "bending_2011": (EmpiricalBendingLaw2011(), _BENDING_2011_STIFFNESS, 2.0),
     "torsion_2011": (EmpiricalTorsionLaw2011(), _TORSION_TWIST * _TORSION_TORQUE, 10.0),
 }
@@ -193,7 +221,8 @@ def test_energy_is_quadrature_of_moment(profiled):
     law, _, scale, profile = profiled
     breakpoints = []
     if isinstance(law, SplineLaw):
-        breakpoints = np.asarray(law.pivots(PRESSURE, RADIUS)[0]).tolist()
+        knots = np.asarray(law.pivots(PRESSURE, RADIUS)[0])
+        breakpoints = [float(law.linear_share) * knots[0]] + knots.tolist()
     elif isinstance(law, TensionFieldLaw):
         breakpoints = [WRINKLING_CURVATURE]
     for target, energy in zip(scale * _QUAD_TARGETS, profile["quad_energy"]):
@@ -298,7 +327,9 @@ def spline_setups(draw):
                                 curvature_exponent=draw(exponents),
                                 moment_exponent=draw(exponents),
                                 radius_exponents=radius_exponents,
-                                residual_stiffness_ratio=draw(st.floats(1e-3, 0.1)))
+                                residual_stiffness_ratio=draw(st.floats(1e-3, 0.1)),
+                                linear_share=draw(st.sampled_from([0.0, 0.5])
+                                                  | st.floats(0.0, 0.95)))
     pressure = PRESSURE * draw(st.sampled_from([0.5, 1.0, 2.0]))
     radius = RADIUS * draw(st.sampled_from([0.7, 1.0, 1.3]))
     return law, pressure, radius
@@ -311,6 +342,7 @@ def _spline_profile(law, pressure, radius):
     grid = jnp.linspace(0.0, 2.0 * knots[-1], _SPLINE_GRID)
     points = jnp.concatenate([jnp.zeros(1), knots])
     step = 1e-5 * jnp.min(jnp.diff(points))
+    points = jnp.concatenate([points, law.linear_share * knots[:1]])  # where M'' may jump
     around = (points + step * jnp.asarray(_C1_OFFSETS)[:, None]).ravel()
     targets = jnp.stack([0.5 * knots[0], knots[3], 0.5 * (knots[5] + knots[6]),
                          1.5 * knots[-1]])
@@ -357,6 +389,7 @@ def test_spline_is_odd_monotone_c1_and_integrable(setup):
     secants = np.diff(np.concatenate([[0.0], knot_moments])) / np.diff(points)
     local_slope = np.maximum(np.concatenate([[secants[0]], secants]),
                              np.concatenate([secants, [secants[-1]]]))
+    local_slope = np.concatenate([local_slope, local_slope[:1]])  # k_0 = share * k_1
     far_left, left, centre, right, far_right = profile["around"]
     step = profile["step"]
     left_slope = (3.0 * centre - 4.0 * left + far_left) / (2.0 * step)
@@ -368,7 +401,8 @@ def test_spline_is_odd_monotone_c1_and_integrable(setup):
     np.testing.assert_allclose(profile["energy_slope"], moment, rtol=1e-10,
                                atol=1e-13 * moment.max())
     for target, energy in zip(profile["targets"], profile["target_energy"]):
-        expected = _quad_energy(law, target, pressure, radius, knots)
+        expected = _quad_energy(law, target, pressure, radius,
+                                [float(law.linear_share) * knots[0], *knots])
         assert energy == pytest.approx(expected, rel=1e-9)
 
 
@@ -422,6 +456,64 @@ def test_spline_other_pivot_counts():
     np.testing.assert_allclose(moment[3:], [2.0, 2.3], rtol=1e-12)
     np.testing.assert_allclose(second, tangent, rtol=1e-10)
     assert float(tangent[0]) == pytest.approx(float(law.initial_stiffness(PRESSURE, RADIUS)))
+
+
+def test_spline_linear_share_first_piece_by_hand():
+    """The first piece M = a k + b max(k - k_0, 0)^3: at share 0 the odd cubic of the paper
+    form; at 0.6 exactly linear up to k_0, C2 there, meeting M_1 with the knot slope."""
+    curvatures, moments = _SHARE_PIVOTS
+    k1 = curvatures[0]
+    probes = np.concatenate([np.linspace(0.0, k1, 41), [0.3, 1.0]])
+    for share in (0.0, 0.6, 0.95):
+        law = eqx.tree_at(lambda old: old.linear_share, _SHARE_LAW, jnp.asarray(share))
+        a, b, k0 = _first_piece(curvatures, moments, share)
+        moment, tangent, second, regime = (np.asarray(v) for v in _curve(
+            law, jnp.asarray(probes), PRESSURE, RADIUS))
+        inner = probes[:41]
+        expected = a * inner + b * np.maximum(inner - k0, 0.0) ** 3
+        np.testing.assert_allclose(moment[:41], expected, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(tangent[:41], a + 3 * b * np.maximum(inner - k0, 0.0) ** 2,
+                                   rtol=1e-10)
+        assert moment[40] == pytest.approx(moments[0], rel=1e-13)
+        assert tangent[40] == pytest.approx(_first_pivot_slope(curvatures, moments), rel=1e-10)
+        np.testing.assert_allclose(second, tangent, rtol=1e-9)  # energy Hessian = tangent
+        assert np.all(np.diff(moment) > 0)
+        np.testing.assert_array_equal(regime, [0] * 41 + [1, 2])
+    assert _first_piece(curvatures, moments, 0.0)[0] == pytest.approx(
+        0.5 * (3.0 * moments[0] / k1 - _first_pivot_slope(curvatures, moments)), rel=1e-14)
+    # Towards share 1 the law is linear up to the first pivot: a -> M_1 / k_1.
+    assert _first_piece(curvatures, moments, 0.95)[0] == pytest.approx(
+        moments[0] / k1, rel=0.02)
+
+
+def test_spline_linear_share_derivatives_at_its_null():
+    """d/d(share) at share = 0 (the diagnosis' null) is finite and matches a forward
+    difference, also at and near zero curvature (where the square root is guarded)."""
+    curvatures = jnp.array([0.0, 1e-9, 0.01, 0.04, 0.3])
+
+    @jax.jit
+    def energy_and_moment(share):
+        law = eqx.tree_at(lambda old: old.linear_share, _SHARE_LAW, share)
+        return (law.energy_density(curvatures**2, PRESSURE, RADIUS),
+                law.moment(curvatures, PRESSURE, RADIUS))
+
+    derivatives = jax.jacfwd(energy_and_moment)(jnp.asarray(0.0))
+    reverse = jax.jacrev(energy_and_moment)(jnp.asarray(0.0))
+    step = 1e-7
+    forward = [(plus - zero) / step for plus, zero in
+               zip(energy_and_moment(jnp.asarray(step)), energy_and_moment(jnp.asarray(0.0)))]
+    for exact, backward, difference in zip(derivatives, reverse, forward):
+        assert np.all(np.isfinite(exact)) and np.all(np.isfinite(backward))
+        np.testing.assert_allclose(exact, backward, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(exact, difference, rtol=1e-5,
+                                   atol=1e-6 * float(np.abs(exact).max()))
+
+
+@pytest.mark.parametrize("share", [1.0, -0.1])
+def test_spline_rejects_linear_share_outside_range(share):
+    with pytest.raises(ValueError, match="linear_share must lie in"):
+        SplineLaw.from_pivots(*_SHARE_PIVOTS, PRESSURE, RADIUS, pivots_per_regime=(1, 1, 1),
+                              linear_share=share)
 
 
 @pytest.mark.parametrize("curvatures, moments, message", [

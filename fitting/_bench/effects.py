@@ -250,6 +250,39 @@ class RadiusScaling(Effect):
                            _replace_tube_law(params.bending_laws, specimen.tube, law))
 
 
+class UnwrinkledLinearity(Effect):
+    """Model-structure extension: the unwrinkled regime linear up to near the onset.
+
+    With one pivot in the unwrinkled regime, the spline's first piece is the odd cubic
+    ``M = a k + b k^3``, which bends over its whole range. A membrane tube is linear until
+    it wrinkles (``EI = pi E t r^3`` up to ``kappa_w``; docs/physics.md, sections 1.1 and
+    2.3), then softens at once. The law's ``linear_share`` ``s`` keeps it linear up to
+    ``s k_1`` and bends it only on ``[s k_1, k_1]`` (:class:`jaxtube.SplineLaw`); null 0 is
+    the paper's spline. ``s`` is dimensionless, so a self-similar tube (the tension-field
+    tube's shape in ``kappa / kappa_w``, ``M / M_w`` is the same at every pressure and
+    radius) has one ``s``. Typical size 0.8 (a tube that stays linear to near the
+    onset); the bound 0.95 keeps the bend from becoming a kink.
+    """
+
+    name: ClassVar[str] = "unwrinkled_linearity"
+    parameters: ClassVar[tuple[EffectParameter, ...]] = (
+        EffectParameter("linear_share", "-", 0.0, 0.0, 0.95, 0.8),)
+    kind: ClassVar[str] = "model_structure"
+    signature: ClassVar[str] = ("curves straighter than the model at first, then softening "
+                                "more abruptly near the wrinkling onset, at every pressure "
+                                "and radius alike")
+    linear_share: jnp.ndarray = eqx.field(converter=jnp.asarray)
+
+    def apply(self, params, specimen):
+        law = params.bending_laws[specimen.tube]
+        if not isinstance(law, jt.SplineLaw):
+            raise TypeError(f"unwrinkled_linearity acts on a SplineLaw, got {type(law).__name__}")
+        law = eqx.tree_at(lambda old: old.linear_share, law,
+                          jnp.broadcast_to(self.linear_share, law.linear_share.shape))
+        return eqx.tree_at(lambda p: p.bending_laws, params,
+                           _replace_tube_law(params.bending_laws, specimen.tube, law))
+
+
 # Rigid limits used when a rig provides a degree of freedom whose effect is at its null value:
 # a compliance / flexibility this small changes forces by less than 1e-5 (relative; tested).
 RIGID_CLAMP_COMPLIANCE = 1e-9  # rad/(N m)
@@ -277,7 +310,8 @@ BUILT_IN_EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls for cls in (Shear, Reinforcement, ClampCompliance, SelfWeight)}
 
 #: Candidates of the diagnosis besides the physical effects (model-structure extensions).
-MODEL_EXTENSIONS: dict[str, type[Effect]] = {RadiusScaling.name: RadiusScaling}
+MODEL_EXTENSIONS: dict[str, type[Effect]] = {
+    cls.name: cls for cls in (RadiusScaling, UnwrinkledLinearity)}
 
 
 def resolve_effect(text: str) -> type[Effect]:

@@ -84,8 +84,9 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--effect", action="append", default=[], metavar="NAME|FILE.py:Class",
                         help="an extra candidate: a user's Effect subclass (repeatable)")
     parser.add_argument("--candidates", default=None, metavar="NAME,NAME",
-                        help="restrict the candidates (default: radius_scaling, shear, "
-                             "reinforcement, clamp_compliance, self_weight, and --effect ones)")
+                        help="restrict the candidates (default: radius_scaling, "
+                             "unwrinkled_linearity, shear, reinforcement, clamp_compliance, "
+                             "self_weight, and --effect ones)")
     parser.add_argument("--noise-N", type=positive_float, default=None,
                         help="force noise standard deviation [N] (default: estimated from "
                              "the scatter of the data, without a model)")

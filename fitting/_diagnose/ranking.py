@@ -1,10 +1,10 @@
 """Which effect is missing: score tests, refits, the decision rule and the ranking.
 
 The candidates are effects (:class:`fitting.Effect`): the built-in physical effects, the
-model-structure extension ``radius_scaling``, and any the user passes. All are compiled into
-one model at their null values, so the baseline fit, every score test and every refit share
-one compilation per data shape; which coordinates are free is chosen on the host. The loop
-over additions is :mod:`fitting._diagnose.diagnosis`.
+model-structure extensions ``radius_scaling`` and ``unwrinkled_linearity``, and any the user
+passes. All are compiled into one model at their null values, so the baseline fit, every
+score test and every refit share one compilation per data shape; which coordinates are free
+is chosen on the host. The loop over additions is :mod:`fitting._diagnose.diagnosis`.
 
 **Score test at the null** (Rao 1948; Boos & Stefanski, *Essential Statistical Inference*,
 2013, section 6.4), used only to order the refits. For a fit in which the candidate's
@@ -102,10 +102,11 @@ from .validation import CV_RISE_Z, blocked_cross_validation
 
 
 def default_candidates(scaling: PivotScaling, user_effects: Sequence[type[Effect]] = ()):
-    """The diagnosis' candidates: ``radius_scaling`` (paper form only), the built-in
-    physical effects, then the user's, in that order (laws are modified before
-    reinforcement wraps them)."""
-    extensions = tuple(MODEL_EXTENSIONS.values()) if scaling.form == "paper" else ()
+    """The diagnosis' candidates: the model-structure extensions (``radius_scaling`` in
+    the paper form only, ``unwrinkled_linearity``), the built-in physical effects, then the
+    user's, in that order (laws are modified before reinforcement wraps them)."""
+    extensions = tuple(cls for cls in MODEL_EXTENSIONS.values()
+                       if scaling.form == "paper" or cls.name != "radius_scaling")
     candidates = extensions + tuple(BUILT_IN_EFFECTS.values())
     names = [c.name for c in candidates]
     for effect in user_effects:

@@ -33,13 +33,14 @@ class _SplineCoefficients(NamedTuple):
     moments: Array  # pivot moments M_1..M_K
     slopes: Array  # dM/dkappa at the pivots; the last one is the residual slope
     energies: Array  # W at the pivots
-    linear_coefficient: Array  # a in M = a kappa + b kappa^3 on [0, k_1]
+    linear_coefficient: Array  # a in M = a kappa + b max(kappa - k_0, 0)^3 on [0, k_1]
     cubic_coefficient: Array  # b
+    linear_end: Array  # k_0 = linear_share * k_1: the law is linear, a kappa, on [0, k_0]
 
 
 @jax.jit
-def _spline_coefficients(curvatures: Array, moments: Array,
-                         residual_stiffness_ratio: Array) -> _SplineCoefficients:
+def _spline_coefficients(curvatures: Array, moments: Array, residual_stiffness_ratio: Array,
+                         linear_share: Array) -> _SplineCoefficients:
     zero = jnp.zeros_like(curvatures[..., :1])
     widths = jnp.diff(jnp.concatenate([zero, curvatures], axis=-1), axis=-1)
     secants = jnp.diff(jnp.concatenate([zero, moments], axis=-1), axis=-1) / widths
@@ -57,12 +58,19 @@ def _spline_coefficients(curvatures: Array, moments: Array,
     ratio_secant = residual_stiffness_ratio * initial_secant
     residual_slope = ratio_secant * 3.0 * last_secant / (3.0 * last_secant + ratio_secant)
     slopes = jnp.concatenate([interior_slopes, residual_slope[..., None]], axis=-1)
-    # Odd cubic M = a k + b k^3 on [0, k_1] with M(k_1) = M_1, M'(k_1) = d_1.
+    # First piece on [0, k_1]: M = a k + b max(k - k_0, 0)^3 with k_0 = share * k_1, i.e. linear
+    # up to k_0, then a cubic that is C2 there (M'' = 0) and meets M(k_1) = M_1, M'(k_1) = d_1:
+    # a = (3 M_1 - d_1 w) / (3 k_1 - w), b = (M_1 - a k_1) / w^3, w = k_1 - k_0. At share 0
+    # this is the odd cubic a = (3 s_1 - d_1) / 2, b = (d_1 - s_1) / (2 k_1^2), s_1 = M_1 / k_1.
     first_curvature, first_slope = curvatures[..., 0], slopes[..., 0]
-    linear_coefficient = 0.5 * (3.0 * initial_secant - first_slope)
-    cubic_coefficient = 0.5 * (first_slope - initial_secant) / first_curvature**2
+    first_moment = moments[..., 0]
+    linear_end = linear_share * first_curvature
+    bend_width = first_curvature - linear_end
+    linear_coefficient = ((3.0 * first_moment - first_slope * bend_width)
+                          / (3.0 * first_curvature - bend_width))
+    cubic_coefficient = (first_moment - linear_coefficient * first_curvature) / bend_width**3
     first_energy = (0.5 * linear_coefficient * first_curvature**2
-                    + 0.25 * cubic_coefficient * first_curvature**4)
+                    + 0.25 * cubic_coefficient * bend_width**4)
     # Exact integral of each cubic Hermite piece: h (M_l + M_r)/2 + h^2 (d_l - d_r)/12.
     piece_energies = (0.5 * width_after * (moments[..., :-1] + moments[..., 1:])
                       + width_after**2 * (slopes[..., :-1] - slopes[..., 1:]) / 12.0)
@@ -70,7 +78,7 @@ def _spline_coefficients(curvatures: Array, moments: Array,
         [jnp.zeros_like(first_energy[..., None]), jnp.cumsum(piece_energies, axis=-1)],
         axis=-1)
     return _SplineCoefficients(curvatures, moments, slopes, energies, linear_coefficient,
-                               cubic_coefficient)
+                               cubic_coefficient, linear_end)
 
 
 @jax.jit
@@ -120,6 +128,15 @@ def _spline_beyond_first_pivot(coefficients: _SplineCoefficients,
             jnp.where(on_tail, tail_energy, hermite_energy))
 
 
+def _bend_excess(curvature_sq: Array, linear_end: Array) -> Array:
+    """`max(|kappa| - k_0, 0)` from `kappa^2`, differentiable everywhere: zero (with zero
+    derivatives) where `kappa^2 <= k_0^2`, so the square root never sees 0 (at `k_0 = 0` the
+    energy's term `(kappa^2)^2` then has the right first derivative, 0, at `kappa = 0`)."""
+    bent = curvature_sq > linear_end**2
+    magnitude = jnp.sqrt(jnp.where(bent, curvature_sq, 1.0))
+    return jnp.where(bent, magnitude - linear_end, 0.0)
+
+
 @final
 class SplineLaw(AbstractMomentLaw):
     """Three-regime spline law of Breukels & Ockels (2008), monotone and C1 by construction.
@@ -142,10 +159,16 @@ class SplineLaw(AbstractMomentLaw):
     slope `k_res`, `1/k_res = 1/(ratio * delta_0) + 1/(3 delta_last)` (about
     `residual_stiffness_ratio` times the initial secant `delta_0 = M_1/k_1`, never above 3x
     the last secant), and the law continues linearly with that slope beyond the last pivot.
-    On `[0, k_1]` the law is the odd cubic `M = a k + b k^3` matching `M_1` and the slope at
-    `k_1`; its energy `a s/2 + b s^2/4` is polynomial in `s = k^2`. Other pieces are cubic
-    Hermite with closed-form (quartic) energies. Every piece is monotone since every knot
-    slope lies in `(0, 3 min(adjacent secants))`.
+    On `[0, k_1]` the law is `M = a k + b max(k - k_0, 0)^3`, linear up to
+    `k_0 = linear_share * k_1` and then a cubic that is C2 at `k_0` and matches `M_1` and the
+    slope `d_1` at `k_1`: `a = (3 M_1 - d_1 w) / (3 k_1 - w)`, `b = (M_1 - a k_1) / w^3`,
+    `w = k_1 - k_0`; energy `a s/2 + b max(k - k_0, 0)^4 / 4` with `s = k^2`. The default
+    `linear_share = 0` is the odd cubic `M = a k + b k^3` (energy polynomial in `s`);
+    `linear_share -> 1` makes the unwrinkled regime linear up to the onset, as a membrane
+    tube is (`EI = pi E t r^3` until wrinkling; docs/physics.md, sections 1.1 and 2.3).
+    Other pieces are cubic Hermite with closed-form (quartic) energies. Every piece is
+    monotone since every knot slope lies in `(0, 3 min(adjacent secants))` (on `[k_0, k_1]`
+    the slope runs monotonically from `a > 0` to `d_1 > 0`).
 
     Note: collinear regime-1 pivots make the law exactly linear up to the second-to-last
     regime-1 pivot. The last regime-1 piece bends towards the (smaller) wrinkled slope at the
@@ -158,7 +181,9 @@ class SplineLaw(AbstractMomentLaw):
     `curvature_scale` [1/m per (unit of the scaling)^exponent], `curvature_exponent`,
     `moment_scale`, `moment_exponent`, `curvature_radius_exponent` and
     `moment_radius_exponent` (both `None` for the paper form), `residual_stiffness_ratio`
-    (scalar, default 0.01), static `pivots_per_regime` (default (3, 3, 3)).
+    (scalar, default 0.01), `linear_share` (scalar or (...), in [0, 1), default 0: the
+    share of the first pivot's curvature over which the law is linear), static
+    `pivots_per_regime` (default (3, 3, 3)).
     """
 
     curvature_scale: Array = eqx.field(converter=as_float)
@@ -170,6 +195,7 @@ class SplineLaw(AbstractMomentLaw):
     moment_radius_exponent: Array | None = eqx.field(default=None,
                                                      converter=as_optional_float)
     residual_stiffness_ratio: Array = eqx.field(default=0.01, converter=as_float)
+    linear_share: Array = eqx.field(default=0.0, converter=as_float)
     pivots_per_regime: tuple[int, int, int] = eqx.field(default=(3, 3, 3), static=True)
 
     def __check_init__(self):
@@ -188,6 +214,9 @@ class SplineLaw(AbstractMomentLaw):
             if value is not None and (value.ndim == 0 or value.shape[-1] != pivot_count):
                 raise ValueError(f"{name} must have shape (..., {pivot_count}) for "
                                  f"pivots_per_regime={counts}, got {value.shape}.")
+        share = concrete_or_none(self.linear_share)
+        if share is not None and not np.all((share >= 0.0) & (share < 1.0)):
+            raise ValueError(f"linear_share must lie in [0, 1), got {share.tolist()}.")
 
     def pivots(self, pressure: ArrayLike, radius: ArrayLike) -> tuple[Array, Array]:
         """Pivot curvatures [1/m] and moments [N m], each of shape (..., K).
@@ -210,7 +239,8 @@ class SplineLaw(AbstractMomentLaw):
 
     def _coefficients(self, pressure, radius) -> _SplineCoefficients:
         curvatures, moments = self.pivots(pressure, radius)
-        return _spline_coefficients(curvatures, moments, self.residual_stiffness_ratio)
+        return _spline_coefficients(curvatures, moments, self.residual_stiffness_ratio,
+                                    self.linear_share)
 
     def energy_density(self, curvature_sq, pressure, radius):
         curvature_sq = as_float(curvature_sq)
@@ -220,7 +250,8 @@ class SplineLaw(AbstractMomentLaw):
         curvature = jnp.sqrt(jnp.where(beyond, curvature_sq, first_sq))
         _, outer_energy = _spline_beyond_first_pivot(spline, curvature)
         inner_energy = (0.5 * spline.linear_coefficient * curvature_sq
-                        + 0.25 * spline.cubic_coefficient * curvature_sq**2)
+                        + 0.25 * spline.cubic_coefficient
+                        * _bend_excess(curvature_sq, spline.linear_end) ** 4)
         return jnp.where(beyond, outer_energy, inner_energy)
 
     def moment(self, curvature, pressure, radius):
@@ -231,8 +262,9 @@ class SplineLaw(AbstractMomentLaw):
         beyond = magnitude > first
         outer_moment, _ = _spline_beyond_first_pivot(spline,
                                                      jnp.where(beyond, magnitude, first))
-        inner_moment = (spline.linear_coefficient * curvature
-                        + spline.cubic_coefficient * curvature**3)
+        inner_moment = (spline.linear_coefficient * curvature + jnp.sign(curvature)
+                        * spline.cubic_coefficient
+                        * _bend_excess(curvature**2, spline.linear_end) ** 3)
         return jnp.where(beyond, jnp.sign(curvature) * outer_moment, inner_moment)
 
     def regime(self, curvature, pressure, radius):
@@ -253,7 +285,8 @@ class SplineLaw(AbstractMomentLaw):
                     curvature_exponent: ArrayLike = 1.0, moment_exponent: ArrayLike = 1.0,
                     radius_exponents: tuple[ArrayLike, ArrayLike] | None = None,
                     residual_stiffness_ratio: ArrayLike = 0.01,
-                    pivots_per_regime: tuple[int, int, int] = (3, 3, 3)) -> "SplineLaw":
+                    pivots_per_regime: tuple[int, int, int] = (3, 3, 3),
+                    linear_share: ArrayLike = 0.0) -> "SplineLaw":
         """Law whose pivots at `(reference_pressure [Pa], reference_radius [m])` are given.
 
         Arguments:
@@ -264,6 +297,8 @@ class SplineLaw(AbstractMomentLaw):
             radius_exponents: `None` for the paper form, or the pair
                 `(curvature_radius_exponent, moment_radius_exponent)` (scalars or (K,)) for
                 the separate form.
+            linear_share: share of the first pivot's curvature over which the law is
+                linear (class docstring), in [0, 1).
 
         Raises `ValueError` for a wrong pivot count or (when the pivots are concrete)
         pivots that are not positive and strictly increasing.
@@ -303,6 +338,7 @@ class SplineLaw(AbstractMomentLaw):
                    curvature_radius_exponent=curvature_radius_exponent,
                    moment_radius_exponent=moment_radius_exponent,
                    residual_stiffness_ratio=residual_stiffness_ratio,
+                   linear_share=linear_share,
                    pivots_per_regime=tuple(pivots_per_regime))
 
     @classmethod
