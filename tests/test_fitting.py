@@ -11,11 +11,14 @@ import importlib.util
 import json
 from pathlib import Path
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import fitting as ft
+import jaxtube as jt
+from fitting._bench import effects as fx
 from fitting._calibrate import problem as _calibrate
 from fitting._cli import main
 
@@ -203,3 +206,46 @@ class _no_raise:
 
     def __exit__(self, *exc):
         return False
+
+
+class _TubeLaws(eqx.Module):
+    """What an effect's ``apply`` reads and writes of a structure's parameters."""
+
+    bending_laws: tuple
+
+
+def test_load_law_folds_the_model_structure_extensions_in(tmp_path):
+    """A parameters file from a fit with ``radius_scaling`` and ``unwrinkled_linearity``:
+    the law read back is, at every radius, the law the fit's model used there (the effects'
+    own ``apply``), so ``simulate`` and ``sweep`` use the fitted law, not its base."""
+    base = jt.SplineLaw.from_pivots([0.02, 0.3, 1.5], [12.0, 20.0, 24.0], 2.4e4, 0.07,
+                                    curvature_exponent=[1.0, 0.9, 1.1],
+                                    moment_exponent=[1.0, 1.05, 0.95],
+                                    pivots_per_regime=(1, 1, 1))
+    reference = {"pressure_Pa": 2.4e4, "radius_m": 0.07}
+    effects = {"radius_scaling": {"curvature_radius_excess": -3.0,
+                                  "moment_radius_excess": 0.1},
+               "unwrinkled_linearity": {"linear_share": 0.4}}
+    document = {"format": "jaxtube-fit", "version": 1, "reference": reference,
+                "effects": effects,
+                "law": {"type": "SplineLaw", "form": "paper", "pivots_per_regime": [1, 1, 1],
+                        "residual_stiffness_ratio": 0.01,
+                        **{name: np.asarray(getattr(base, name)).tolist() for name in (
+                            "curvature_scale", "curvature_exponent", "moment_scale",
+                            "moment_exponent")},
+                        "curvature_radius_exponent": None, "moment_radius_exponent": None}}
+    path = tmp_path / "parameters.json"
+    path.write_text(json.dumps(document))
+    loaded = ft.load_law(path)
+    curvature = jnp.linspace(0.0, 3.0, 61)
+    for pressure, radius in ((2.4e4, 0.07), (1.5e4, 0.05), (3.0e4, 0.1)):
+        specimen = fx.RigSpecimen(pressure=pressure, radius=radius, length=1.0, tube=0,
+                                  clamp=None, clamp_length=0.0, reference_pressure=2.4e4,
+                                  reference_radius=0.07)
+        params = _TubeLaws((base,))
+        for effect in (ft.RadiusScaling(-3.0, 0.1), ft.UnwrinkledLinearity(0.4)):
+            params = effect.apply(params, specimen)
+        expected = params.bending_laws[0].moment(curvature, pressure, radius)
+        np.testing.assert_allclose(loaded.moment(curvature, pressure, radius), expected,
+                                   rtol=1e-12, atol=1e-12)
+    assert float(loaded.linear_share) == 0.4

@@ -6,11 +6,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 import jaxtube as jt
 
-from .._bench.effects import BUILT_IN_EFFECTS
+from .._bench.effects import BUILT_IN_EFFECTS, MODEL_EXTENSIONS
 from .._bench.rig import CantileverRig
 from .._bench.scaling import PivotScaling
 from .problem import FitProblem, forces_and_sensitivity, specimen_arrays
@@ -21,11 +23,12 @@ def predict_from_document(document: dict, pressure: float, radius: float, length
                           deflection) -> tuple[np.ndarray, np.ndarray]:
     """Cantilever force [N] and its delta-method standard deviation at tip deflections
     ``[P]`` [m], from a parameters file's contents (its law, coordinates and covariance)."""
-    unknown = [name for name in document.get("effects", {}) if name not in BUILT_IN_EFFECTS]
+    known = BUILT_IN_EFFECTS | MODEL_EXTENSIONS
+    unknown = [name for name in document.get("effects", {}) if name not in known]
     if unknown:
         raise ValueError(f"the fit used effect(s) {unknown}, which are not built in; predict "
                          "with the Python API (FitResult.predict) instead")
-    effects = tuple(BUILT_IN_EFFECTS[name] for name in document.get("effects", {}))
+    effects = tuple(known[name] for name in document.get("effects", {}))
     law = document["law"]
     scaling = PivotScaling(form=law["form"], pivots_per_regime=tuple(law["pivots_per_regime"]),
                            residual_stiffness_ratio=float(law["residual_stiffness_ratio"]))
@@ -53,7 +56,14 @@ def predict_from_document(document: dict, pressure: float, radius: float, length
 
 
 def load_law(path) -> jt.SplineLaw:
-    """The bending law of a parameters file written by ``jaxtube fit`` (clear errors)."""
+    """The bending law of a parameters file written by ``jaxtube fit`` (clear errors).
+
+    The file's ``law`` block is the fitted spline; the model-structure extensions the fit
+    included (``effects``) are part of the law and folded in here, exactly:
+    ``unwrinkled_linearity`` sets ``linear_share``; ``radius_scaling`` (pivot increments times
+    ``(r / r_ref)^D``) turns a paper-form law into the separate form with radius exponents
+    ``3 B_i + D`` and scales ``A_i r_ref^-D``. Physical effects (shear, clamp compliance, ...)
+    belong to the tube or the rig, not to the law, and are not applied."""
     path = Path(path)
     try:
         document = json.loads(path.read_text())
@@ -72,7 +82,7 @@ def load_law(path) -> jt.SplineLaw:
     if law.get("type") != "SplineLaw":
         raise ValueError(f"{path}: law.type must be 'SplineLaw', got {law.get('type')!r}")
     try:
-        return jt.SplineLaw(
+        spline = jt.SplineLaw(
             curvature_scale=np.asarray(law["curvature_scale"], float),
             curvature_exponent=np.asarray(law["curvature_exponent"], float),
             moment_scale=np.asarray(law["moment_scale"], float),
@@ -82,8 +92,37 @@ def load_law(path) -> jt.SplineLaw:
             moment_radius_exponent=None if law.get("moment_radius_exponent") is None
             else np.asarray(law["moment_radius_exponent"], float),
             residual_stiffness_ratio=float(law.get("residual_stiffness_ratio", 0.01)),
+            linear_share=float(law.get("linear_share", 0.0)),
             pivots_per_regime=tuple(int(n) for n in law["pivots_per_regime"]))
+        return _with_model_extensions(spline, document.get("effects") or {},
+                                      document.get("reference") or {})
     except KeyError as error:
         raise ValueError(f"{path}: law.{error.args[0]} is missing") from None
     except (TypeError, ValueError) as error:
         raise ValueError(f"{path}: invalid law: {error}") from None
+
+
+def _with_model_extensions(law: jt.SplineLaw, effects: dict, reference: dict) -> jt.SplineLaw:
+    """``law`` with the fitted model-structure extensions folded in (:func:`load_law`)."""
+    if "unwrinkled_linearity" in effects:
+        law = eqx.tree_at(lambda old: old.linear_share, law,
+                          jnp.asarray(float(effects["unwrinkled_linearity"]["linear_share"])))
+    if "radius_scaling" in effects:
+        if law.curvature_radius_exponent is not None:
+            raise ValueError("radius_scaling acts on a paper-form law, but law is separate")
+        values = effects["radius_scaling"]
+        excess = (float(values["curvature_radius_excess"]),
+                  float(values["moment_radius_excess"]))
+        reference_radius = float(reference["radius_m"])
+        curvature_exponent = np.asarray(law.curvature_exponent)
+        moment_exponent = np.asarray(law.moment_exponent)
+        law = jt.SplineLaw(
+            curvature_scale=np.asarray(law.curvature_scale) * reference_radius**-excess[0],
+            curvature_exponent=curvature_exponent,
+            curvature_radius_exponent=3.0 * curvature_exponent + excess[0],
+            moment_scale=np.asarray(law.moment_scale) * reference_radius**-excess[1],
+            moment_exponent=moment_exponent,
+            moment_radius_exponent=3.0 * moment_exponent + excess[1],
+            residual_stiffness_ratio=law.residual_stiffness_ratio,
+            linear_share=law.linear_share, pivots_per_regime=law.pivots_per_regime)
+    return law

@@ -16,7 +16,11 @@ Parameters file (JSON, ``format = "jaxtube-fit"``, ``version = 1``)::
      "noise_N": ..., "rmse_N": ..., "curves": [{"curve": ..., "rmse_N": ...}, ...],
      "convergence": {...}, "identifiability": ["...", ...], "data": "path"}
 
-:func:`load_law` reads the law back (``jaxtube simulate --params``, ``jaxtube predict``).
+The ``law`` block is the fitted spline without the effects (its ``linear_share`` is read
+if present, default 0); ``effects`` holds each fitted effect's values. :func:`load_law`
+reads the law back (``jaxtube simulate --params``, ``jaxtube sweep --params``) with the
+model-structure extensions (``radius_scaling``, ``unwrinkled_linearity``) folded in;
+``jaxtube predict`` rebuilds the fitted model from ``coordinates``, effects included.
 """
 
 from __future__ import annotations
