@@ -20,6 +20,7 @@ import fitting as ft
 import jaxtube as jt
 from fitting._bench import effects as fx
 from fitting._calibrate import problem as _calibrate
+from fitting._calibrate.parameters_file import without_effects_words
 from fitting._cli import main
 
 DATA = Path(__file__).parent / "data" / "calibration_spline.csv"
@@ -249,3 +250,7 @@ def test_load_law_folds_the_model_structure_extensions_in(tmp_path):
         np.testing.assert_allclose(loaded.moment(curvature, pressure, radius), expected,
                                    rtol=1e-12, atol=1e-12)
     assert float(loaded.linear_share) == 0.4
+    assert without_effects_words(path) == ""  # both are folded into the law
+    document["effects"]["shear"] = {"flexibility": 6e-5}
+    path.write_text(json.dumps(document))
+    assert "shear not applied" in without_effects_words(path)

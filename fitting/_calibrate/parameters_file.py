@@ -102,6 +102,24 @@ def load_law(path) -> jt.SplineLaw:
         raise ValueError(f"{path}: invalid law: {error}") from None
 
 
+def effects_outside_the_law(path) -> list[str]:
+    """Names of the effects a parameters file's fit included that :func:`load_law` does not
+    fold into the law (physical effects: properties of the bench rig or the tube), for
+    ``simulate`` and ``sweep`` to name; call after :func:`load_law` has validated the file."""
+    effects = json.loads(Path(path).read_text()).get("effects") or {}
+    return [name for name in effects if name not in MODEL_EXTENSIONS]
+
+
+def without_effects_words(path) -> str:
+    """`` (the fit's X, Y not applied: ...)`` or ``""``: what a law read from ``path``
+    leaves out, in words."""
+    left_out = effects_outside_the_law(path)
+    if not left_out:
+        return ""
+    return (f" (the fit's {', '.join(left_out)} not applied: effects of the bench rig or "
+            "tube, not of the law)")
+
+
 def _with_model_extensions(law: jt.SplineLaw, effects: dict, reference: dict) -> jt.SplineLaw:
     """``law`` with the fitted model-structure extensions folded in (:func:`load_law`)."""
     if "unwrinkled_linearity" in effects:

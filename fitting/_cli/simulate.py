@@ -44,7 +44,7 @@ import numpy as np
 
 import jaxtube as jt
 
-from .._calibrate.parameters_file import load_law
+from .._calibrate.parameters_file import load_law, without_effects_words
 from .._data.units import MM_PER_M
 from .._json import finite_or_none, write_json
 from .common import bad_output_directory, positive_float, positive_int, write_directory
@@ -142,7 +142,8 @@ def _simulate(args) -> int:
         params = eqx.tree_at(lambda p: p.bending_laws, params,
                              tuple(law for _ in params.bending_laws))
         spec = spec._replace(params=params)
-        report.progress(f"bending law of every tube from {args.params}")
+        report.progress(f"bending law of every tube from {args.params}"
+                        + without_effects_words(args.params))
     joint_node = _joint_nodes(spec)
     target = (f"to {meta.path_values[-1] * MM_PER_M:g} mm" if meta.control == "displacement"
               else f"to load factor {meta.path_values[-1]:g}")

@@ -41,7 +41,7 @@ import numpy as np
 
 import jaxtube as jt
 
-from .._calibrate.parameters_file import load_law
+from .._calibrate.parameters_file import load_law, without_effects_words
 from .._data.units import BAR_PER_PA, MM_PER_M
 from .._json import write_json
 from .._sweep.sweep import SweepSettings, sweep
@@ -117,7 +117,9 @@ def add_sweep(subparsers) -> None:
 def _law(args):
     """The bending law and a description of it, or raise ValueError naming the flag."""
     if args.params is not None:
-        return load_law(args.params), f"fitted spline law from {args.params}"
+        law = load_law(args.params)
+        return law, (f"fitted spline law from {args.params}"
+                     + without_effects_words(args.params))
     if args.law != "tension_field" and args.wall_modulus_N_per_m is not None:
         raise ValueError("--wall-modulus-N-per-m is only used with --law tension_field")
     if args.law != "linear" and args.bending_stiffness_N_m2 is not None:
