@@ -94,7 +94,9 @@ class Effect(eqx.Module):
         parameters: :class:`EffectParameter` per field, in order.
         features: rig degrees of freedom it needs (``"shear"``, ``"clamp_spring"``).
         kind: ``"physical"`` (a physical effect) or ``"model_structure"`` (an extension of
-            the law's form, such as ``radius_scaling``).
+            the law's form, such as ``radius_scaling``; such an effect also defines
+            :meth:`law_for_every_specimen`).
+        forms: the pivot scaling forms (``"paper"``, ``"separate"``) it acts on.
         separated_by: specimen quantities (``"pressure"``, ``"radius"``, ``"length"``) along
             which this effect's signature differs from the bending law's: data that vary
             them tell it apart. The diagnosis names them when the effect is confounded.
@@ -105,6 +107,7 @@ class Effect(eqx.Module):
     parameters: ClassVar[tuple[EffectParameter, ...]] = ()
     features: ClassVar[frozenset[str]] = frozenset()
     kind: ClassVar[str] = "physical"
+    forms: ClassVar[tuple[str, ...]] = ("paper", "separate")
     separated_by: ClassVar[tuple[str, ...]] = ()
     signature: ClassVar[str] = ""
 
@@ -112,6 +115,13 @@ class Effect(eqx.Module):
               specimen: RigSpecimen) -> jt.StructureParameters:
         """The specimen's structure parameters with this effect included."""
         raise NotImplementedError
+
+    def law_for_every_specimen(self, law: jt.SplineLaw, reference_radius: float
+                               ) -> jt.SplineLaw:
+        """A model-structure extension folded into ``law``: one law that is, at every
+        pressure and radius, what :meth:`apply` makes of ``law`` there (``reference_radius``
+        [m]: the fit's). Physical effects are not part of the law and do not define it."""
+        raise NotImplementedError(f"{self.name} is not part of the bending law")
 
     def values(self) -> dict[str, float]:
         return {p.name: getattr(self, p.name) for p in self.parameters}
@@ -229,6 +239,7 @@ class RadiusScaling(Effect):
         EffectParameter("curvature_radius_excess", "-", 0.0, -4.0, 4.0, -3.0),
         EffectParameter("moment_radius_excess", "-", 0.0, -4.0, 4.0, 0.1))
     kind: ClassVar[str] = "model_structure"
+    forms: ClassVar[tuple[str, ...]] = ("paper",)
     separated_by: ClassVar[tuple[str, ...]] = ("radius",)
     signature: ClassVar[str] = ("pivots that scale with the radius differently from (p r^3)^B: "
                                 "curves at different radii misfit in opposite directions")
@@ -248,6 +259,22 @@ class RadiusScaling(Effect):
                            law.moment_scale * ratio**self.moment_radius_excess))
         return eqx.tree_at(lambda p: p.bending_laws, params,
                            _replace_tube_law(params.bending_laws, specimen.tube, law))
+
+    def law_for_every_specimen(self, law, reference_radius):
+        """The separate form: increments ``A_i (p r^3)^B_i (r / r_ref)^D`` are
+        ``(A_i r_ref^-D) p^B_i r^(3 B_i + D)``."""
+        if law.curvature_radius_exponent is not None:
+            raise ValueError("radius_scaling acts on a paper-form SplineLaw")
+        return jt.SplineLaw(
+            curvature_scale=law.curvature_scale * reference_radius**-self.curvature_radius_excess,
+            curvature_exponent=law.curvature_exponent,
+            curvature_radius_exponent=3.0 * law.curvature_exponent
+            + self.curvature_radius_excess,
+            moment_scale=law.moment_scale * reference_radius**-self.moment_radius_excess,
+            moment_exponent=law.moment_exponent,
+            moment_radius_exponent=3.0 * law.moment_exponent + self.moment_radius_excess,
+            residual_stiffness_ratio=law.residual_stiffness_ratio,
+            linear_share=law.linear_share, pivots_per_regime=law.pivots_per_regime)
 
 
 class UnwrinkledLinearity(Effect):
@@ -277,10 +304,14 @@ class UnwrinkledLinearity(Effect):
         law = params.bending_laws[specimen.tube]
         if not isinstance(law, jt.SplineLaw):
             raise TypeError(f"unwrinkled_linearity acts on a SplineLaw, got {type(law).__name__}")
-        law = eqx.tree_at(lambda old: old.linear_share, law,
-                          jnp.broadcast_to(self.linear_share, law.linear_share.shape))
         return eqx.tree_at(lambda p: p.bending_laws, params,
-                           _replace_tube_law(params.bending_laws, specimen.tube, law))
+                           _replace_tube_law(params.bending_laws, specimen.tube,
+                                             self.law_for_every_specimen(law, None)))
+
+    def law_for_every_specimen(self, law, reference_radius):
+        """The share is the same at every specimen (dimensionless)."""
+        return eqx.tree_at(lambda old: old.linear_share, law,
+                           jnp.broadcast_to(self.linear_share, law.linear_share.shape))
 
 
 # Rigid limits used when a rig provides a degree of freedom whose effect is at its null value:

@@ -6,8 +6,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
 import jaxtube as jt
@@ -59,11 +57,12 @@ def load_law(path) -> jt.SplineLaw:
     """The bending law of a parameters file written by ``jaxtube fit`` (clear errors).
 
     The file's ``law`` block is the fitted spline; the model-structure extensions the fit
-    included (``effects``) are part of the law and folded in here, exactly:
-    ``unwrinkled_linearity`` sets ``linear_share``; ``radius_scaling`` (pivot increments times
-    ``(r / r_ref)^D``) turns a paper-form law into the separate form with radius exponents
-    ``3 B_i + D`` and scales ``A_i r_ref^-D``. Physical effects (shear, clamp compliance, ...)
-    belong to the tube or the rig, not to the law, and are not applied."""
+    included (``effects``) are part of the law and folded in here, exactly, each by its
+    :meth:`fitting.Effect.law_for_every_specimen` (``unwrinkled_linearity`` sets
+    ``linear_share``; ``radius_scaling`` turns a paper-form law into the separate form with
+    radius exponents ``3 B_i + D`` and scales ``A_i r_ref^-D``). Physical effects (shear,
+    clamp compliance, ...) belong to the tube or the rig, not to the law, and are not
+    applied."""
     path = Path(path)
     try:
         document = json.loads(path.read_text())
@@ -102,18 +101,13 @@ def load_law(path) -> jt.SplineLaw:
         raise ValueError(f"{path}: invalid law: {error}") from None
 
 
-def effects_outside_the_law(path) -> list[str]:
-    """Names of the effects a parameters file's fit included that :func:`load_law` does not
-    fold into the law (physical effects: properties of the bench rig or the tube), for
-    ``simulate`` and ``sweep`` to name; call after :func:`load_law` has validated the file."""
-    effects = json.loads(Path(path).read_text()).get("effects") or {}
-    return [name for name in effects if name not in MODEL_EXTENSIONS]
-
-
 def without_effects_words(path) -> str:
-    """`` (the fit's X, Y not applied: ...)`` or ``""``: what a law read from ``path``
-    leaves out, in words."""
-    left_out = effects_outside_the_law(path)
+    """`` (the fit's X, Y not applied: ...)`` or ``""``: the effects of a parameters file's
+    fit that :func:`load_law` does not fold into the law (physical effects: properties of
+    the bench rig or the tube), for ``simulate`` and ``sweep`` to name; call after
+    :func:`load_law` has validated the file."""
+    effects = json.loads(Path(path).read_text()).get("effects") or {}
+    left_out = [name for name in effects if name not in MODEL_EXTENSIONS]
     if not left_out:
         return ""
     return (f" (the fit's {', '.join(left_out)} not applied: effects of the bench rig or "
@@ -122,25 +116,8 @@ def without_effects_words(path) -> str:
 
 def _with_model_extensions(law: jt.SplineLaw, effects: dict, reference: dict) -> jt.SplineLaw:
     """``law`` with the fitted model-structure extensions folded in (:func:`load_law`)."""
-    if "unwrinkled_linearity" in effects:
-        law = eqx.tree_at(lambda old: old.linear_share, law,
-                          jnp.asarray(float(effects["unwrinkled_linearity"]["linear_share"])))
-    if "radius_scaling" in effects:
-        if law.curvature_radius_exponent is not None:
-            raise ValueError("radius_scaling acts on a paper-form law, but law is separate")
-        values = effects["radius_scaling"]
-        excess = (float(values["curvature_radius_excess"]),
-                  float(values["moment_radius_excess"]))
-        reference_radius = float(reference["radius_m"])
-        curvature_exponent = np.asarray(law.curvature_exponent)
-        moment_exponent = np.asarray(law.moment_exponent)
-        law = jt.SplineLaw(
-            curvature_scale=np.asarray(law.curvature_scale) * reference_radius**-excess[0],
-            curvature_exponent=curvature_exponent,
-            curvature_radius_exponent=3.0 * curvature_exponent + excess[0],
-            moment_scale=np.asarray(law.moment_scale) * reference_radius**-excess[1],
-            moment_exponent=moment_exponent,
-            moment_radius_exponent=3.0 * moment_exponent + excess[1],
-            residual_stiffness_ratio=law.residual_stiffness_ratio,
-            linear_share=law.linear_share, pivots_per_regime=law.pivots_per_regime)
+    for name, values in effects.items():
+        if name in MODEL_EXTENSIONS:
+            effect = MODEL_EXTENSIONS[name](**{k: float(v) for k, v in values.items()})
+            law = effect.law_for_every_specimen(law, float(reference["radius_m"]))
     return law

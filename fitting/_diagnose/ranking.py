@@ -102,11 +102,11 @@ from .validation import CV_RISE_Z, blocked_cross_validation
 
 
 def default_candidates(scaling: PivotScaling, user_effects: Sequence[type[Effect]] = ()):
-    """The diagnosis' candidates: the model-structure extensions (``radius_scaling`` in
-    the paper form only, ``unwrinkled_linearity``), the built-in physical effects, then the
-    user's, in that order (laws are modified before reinforcement wraps them)."""
-    extensions = tuple(cls for cls in MODEL_EXTENSIONS.values()
-                       if scaling.form == "paper" or cls.name != "radius_scaling")
+    """The diagnosis' candidates: the model-structure extensions that act on the
+    scaling's form (``radius_scaling`` on the paper form only), the built-in physical
+    effects, then the user's, in that order (laws are modified before reinforcement wraps
+    them)."""
+    extensions = tuple(cls for cls in MODEL_EXTENSIONS.values() if scaling.form in cls.forms)
     candidates = extensions + tuple(BUILT_IN_EFFECTS.values())
     names = [c.name for c in candidates]
     for effect in user_effects:
