@@ -244,3 +244,99 @@ def test_a_start_that_comes_back_to_its_bound_ends_there(monkeypatch):
     x, report, optimum = _linear_lm(monkeypatch, [0.0, 3.0])
     assert report["message"] != FitOutcome[FitOutcome.back_on_bound]
     assert x[1] == 0.0 and x[0] == pytest.approx(optimum, rel=1e-3)
+
+
+class _HeldProblem:
+    """A stand-in problem with two fitted coordinates and two held since the baseline."""
+
+    names = ["A1", "B1", "A2", "B2"]
+
+    def __init__(self, free=("A1", "B1")):
+        self.free_names = list(free)
+        self.free_index = tuple(self.names.index(n) for n in free)
+
+    def with_free(self, names, vector):
+        return _HeldProblem(names)
+
+
+def _release(monkeypatch, chi2_after, errors):
+    """:func:`release_held` from a model at chi^2 = 200 (100 points) with ``A2``, ``B2``
+    held; a refit with the free set ``S`` ends at ``chi2_after[S]`` with standard errors
+    ``errors[S]`` (inf: undetermined)."""
+    from fitting._diagnose import selection
+
+    def result(problem, chi2_value, se):
+        return types.SimpleNamespace(problem=problem, vector=np.arange(4.0), rmse=chi2_value,
+                                     chi2=chi2_value, free_standard_errors=se)
+
+    def fit_problem(problem, options):
+        key = frozenset(problem.free_names)
+        return result(problem, chi2_after[key], [errors[key].get(n, 0.1)
+                                                 for n in problem.free_names])
+
+    monkeypatch.setattr(selection, "fit_problem", fit_problem)
+    monkeypatch.setattr(selection, "chi2", lambda r: r.chi2)
+    monkeypatch.setattr(selection, "dispersion",
+                        lambda r: r.chi2 / (100 - len(r.problem.free_index)))
+    current = result(_HeldProblem(), 200.0, [0.1, 0.1])
+    return selection.release_held(current, ["A2", "B2"], None, 100), current
+
+
+def test_coordinates_held_since_the_baseline_are_freed_once_the_model_determines_them(
+        monkeypatch):
+    """With both held coordinates freed, ``A2`` is determined and ``B2`` is not: ``A2`` alone
+    is refitted and kept free when the BIC falls (chi^2 200 -> 150, one coordinate more:
+    gain 50 / c - ln 100 > 0); kept held when it does not pay (200 -> 198), and untouched
+    when neither is determined."""
+    inf = float("inf")
+    both, alone = frozenset(["A1", "B1", "A2", "B2"]), frozenset(["A1", "B1", "A2"])
+    chi2_after = {both: 149.0, alone: 150.0}
+    errors = {both: {"B2": inf}, alone: {}}
+    (model, released, words), _ = _release(monkeypatch, chi2_after, errors)
+    assert released == ["A2"] and model.problem.free_names == ["A1", "B1", "A2"]
+    assert "freed again" in words[0] and "RMSE 200 -> 150" in words[0]
+
+    (model, released, words), current = _release(
+        monkeypatch, {both: 197.0, alone: 198.0}, errors)
+    assert released == [] and model is current and "does not pay" in words[0]
+
+    (model, released, words), current = _release(
+        monkeypatch, {both: 150.0}, {both: {"A2": inf, "B2": inf}})
+    assert released == [] and model is current and words == []
+
+
+def test_the_refined_law_starts_on_the_current_one():
+    """:func:`refined_start` splits the last unwrinkled and the last wrinkled increment at
+    their middle curvature: at the reference specimen the refined law's pivots are the
+    current ones plus two midpoints whose moments are the current law's there; exponents
+    and effect parameters carry over."""
+    from fitting._bench.scaling import PivotScaling
+    from fitting._diagnose.refinement import refined_scaling, refined_start
+
+    coarse = PivotScaling(pivots_per_regime=(1, 1, 1))
+    fine = refined_scaling(coarse)
+    assert fine.pivots_per_regime == (2, 2, 1)
+    p_ref, r_ref = 2.0e4, 0.07
+    # log of the increments at the reference (kappa, then M), exponents B
+    vector = np.array([np.log(0.2), np.log(1.5), np.log(4.0), 1.0, 0.9, 1.1,
+                       np.log(30.0), np.log(25.0), np.log(4.0), 1.0, 1.05, 0.95, 7e-5])
+    effect = ["shear.flexibility"]
+    current = types.SimpleNamespace(
+        vector=vector, problem=types.SimpleNamespace(
+            scaling=coarse, reference=(p_ref, r_ref), names=coarse.names() + effect,
+            effect_names=tuple(effect)))
+    problem = types.SimpleNamespace(scaling=fine, names=fine.names() + effect,
+                                    effect_names=tuple(effect),
+                                    base=np.zeros(len(fine.names()) + 1))
+    start = refined_start(current, problem)
+    law = coarse.law(vector[:12], p_ref, r_ref)
+    (log_k, b_k), (log_m, b_m) = fine._split(start[:20])
+    curvatures, moments = np.cumsum(np.exp(log_k)), np.cumsum(np.exp(log_m))
+    assert curvatures[[1, 3, 4]] == pytest.approx(np.cumsum([0.2, 1.5, 4.0]), rel=1e-12)
+    assert moments[[1, 3, 4]] == pytest.approx(np.cumsum([30.0, 25.0, 4.0]), rel=1e-12)
+    assert curvatures[[0, 2]] == pytest.approx([0.1, 0.2 + 0.75], rel=1e-12)
+    for k in (0, 2):
+        assert moments[k] == pytest.approx(float(law.moment(curvatures[k], p_ref, r_ref)),
+                                           rel=1e-12)
+    assert list(b_k) == [1.0, 1.0, 0.9, 0.9, 1.1] and list(b_m) == [1.0, 1.0, 1.05, 1.05, 0.95]
+    assert start[-1] == 7e-5

@@ -6,8 +6,11 @@ the backward / swap step (:func:`fitting._diagnose.selection.backward_step`): ea
 addition is removed if, given the rest, keeping it is no longer significant (likelihood
 ratio and BIC), or swapped for a competitor of its own step that, in its place, lowers the
 BIC by more than ``SWAP_BIC``, so that the first good-enough explanation does not shadow
-the right one. Re-rank the rest from the new model, and stop when none is significant (or
-``max_additions`` is reached).
+the right one. Then the coordinates held since the baseline (it did not determine them) that
+the new model determines are freed again when that lowers the BIC
+(:func:`fitting._diagnose.selection.release_held`): an addition can make visible what the
+baseline could not see. Re-rank the rest from the new model, and stop when none is
+significant (or ``max_additions`` is reached).
 
 **Noise.** One noise for every model: the user's, or the model-free estimate with its
 standard error (:func:`fitting.estimate_noise_with_error`); the verdict says whether the
@@ -36,9 +39,10 @@ from .ranking import (
     default_candidates,
     rank_candidates,
 )
+from .refinement import refine_pivots
 from .report import diagnosis_report
 from .score import chi2, parameter_names, point_count
-from .selection import backward_step
+from .selection import backward_step, release_held
 from .separation import _effect_values, separation_statements
 from .validation import blocked_cross_validation
 from .verdict import noise_words, verdict_words
@@ -50,7 +54,11 @@ class DiagnosisStep:
     model after adding it and after the backward / swap step (``fit``), its comparison with
     the data, the current model's blocked CV error before it (nan: not valid), the earlier
     additions that step removed or swapped out (``removed``), what it found, in words
-    (``backward``), and the effects in the model after it (``in_model``)."""
+    (``backward``), the effects in the model after it (``in_model``), and the coordinates
+    held since the baseline that the model after it determines and frees again
+    (``released``, :func:`fitting._diagnose.selection.release_held`). A ``refinement`` step
+    adds no effect: it refines the law's pivots (:mod:`fitting._diagnose.refinement`), and
+    ``candidates`` is the ranking against the model before it (none significant)."""
 
     added: str
     candidates: tuple[CandidateRanking, ...]
@@ -60,6 +68,14 @@ class DiagnosisStep:
     removed: tuple[str, ...] = ()
     backward: tuple[str, ...] = ()
     in_model: tuple[str, ...] = ()
+    released: tuple[str, ...] = ()
+    refinement: bool = False
+    refined_cv_rmse_N: float = math.nan
+
+    @property
+    def cv_rmse_N(self) -> float:
+        """The blocked CV error of the model after this step [N] (nan: not valid)."""
+        return self.refined_cv_rmse_N if self.refinement else self.candidates[0].cv_rmse_N
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,8 +144,10 @@ class Diagnosis:
             "baseline": model(self.baseline, self.baseline_comparison, self.baseline_cv_rmse_N),
             "steps": [{"added": s.added, "rmse_N": s.fit.rmse, "removed": list(s.removed),
                        "in_model": list(s.in_model), "backward": list(s.backward),
+                       "released": list(s.released), "refinement": s.refinement,
+                       "pivots_per_regime": list(s.fit.problem.scaling.pivots_per_regime),
                        "candidates": [c.to_json() for c in s.candidates],
-                       "model": model(s.fit, s.comparison, s.candidates[0].cv_rmse_N)}
+                       "model": model(s.fit, s.comparison, s.cv_rmse_N)}
                       for s in self.steps],
             "verdict": list(self.verdict),
             "statements": list(self.statements),
@@ -186,6 +204,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             kept = [n for n in baseline.problem.free_names if n not in undetermined]
             baseline = fit_problem(baseline.problem.with_free(kept, baseline.vector),
                                    fit_options)
+        still_held = list(undetermined)
         if bar is not None:
             bar.update(1)
         baseline_comparison = compare(baseline)
@@ -198,8 +217,28 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         ranking, cv_now = rank_candidates(current, remaining, options, bar)
         baseline_cv = cv_now
         stop_reason = ""
+        refinement_words: list[str] = []
         while True:
             best = ranking[0] if ranking and ranking[0].significant else None
+            if best is None and options.refine_pivots and comparison_now.verdict.systematic \
+                    and not any(step.refinement for step in steps):
+                refined, held_refined, words = refine_pivots(current, in_model, by_name, data, rig,
+                                               fit_options, candidates,
+                                               options.bic_threshold, n_points)
+                if refined is not None:
+                    current, comparison_now = refined, compare(refined)
+                    still_held = list(held_refined)
+                    steps.append(DiagnosisStep(
+                        added="pivot_refinement", candidates=tuple(ranking), fit=current,
+                        comparison=comparison_now, current_cv_rmse_N=cv_now,
+                        backward=tuple(words), in_model=tuple(in_model), refinement=True,
+                        refined_cv_rmse_N=blocked_cross_validation(current).rmse_N))
+                    if remaining:
+                        ranking, cv_now = rank_candidates(current, remaining, options, bar)
+                        continue
+                    ranking, cv_now = [], blocked_cross_validation(current).rmse_N
+                else:
+                    refinement_words = words
             if best is None:
                 stop_reason = "no remaining candidate is significant"
                 break
@@ -212,6 +251,9 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             in_model.append(best.effect)
             current, removed, backward = backward_step(
                 current, in_model, steps, best, by_name, held, options, polish, n_points)
+            current, released, words = release_held(current, still_held, polish, n_points)
+            still_held = [n for n in still_held if n not in released]
+            backward = list(backward) + words
             # Removed or swapped-out effects do not come back (no cycles); swapped-in ones
             # are in the model.
             remaining = [c for c in remaining if c.name != best.effect
@@ -220,8 +262,10 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             steps.append(DiagnosisStep(added=best.effect, candidates=tuple(ranking),
                                        fit=current, comparison=comparison_now,
                                        current_cv_rmse_N=cv_now, removed=tuple(removed),
-                                       backward=tuple(backward), in_model=tuple(in_model)))
-            if not remaining or len(steps) >= options.max_additions:
+                                       backward=tuple(backward), in_model=tuple(in_model),
+                                       released=tuple(released)))
+            additions = sum(not step.refinement for step in steps)
+            if not remaining or additions >= options.max_additions:
                 ranking, cv_now = [], blocked_cross_validation(current).rmse_N
                 stop_reason = ("every candidate was added" if not remaining else
                                f"max_additions ({options.max_additions}) reached; the rest "
@@ -235,6 +279,8 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
     statements = verdict_words(baseline, baseline_comparison, steps, verdict, comparison_now,
                                ranking, candidates)
     statements += separation_statements(current, remaining, ranking) if ranking else []
+    statements += refinement_words
+    statements += [w for step in steps if step.refinement for w in step.backward]
     statements.append(noise_words(noise, noise_estimate, current))
     for model in (baseline, current):
         validation = blocked_cross_validation(model)
@@ -242,10 +288,17 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             statements.append("Cross-validation left out of the decision: "
                               + validation.words + ".")
             break
-    if undetermined:
+    if still_held:
         statements.append(
-            "Held at their baseline values throughout (the data do not determine them, so "
-            f"they would only drift): {', '.join(undetermined)}.")
+            ("Held in the refined law where its first fit left them" if any(
+                step.refinement for step in steps) else "Held at their baseline values "
+             "throughout") + " (the data do not determine them, so they would only drift): "
+            f"{', '.join(still_held)}.")
+    for step in steps:
+        if step.released:
+            statements.append(
+                f"Held from the baseline until {step.added} was added, then determined and "
+                f"freed again: {', '.join(step.released)}.")
     return Diagnosis(baseline=baseline, baseline_comparison=baseline_comparison,
                      baseline_cv_rmse_N=baseline_cv, steps=tuple(steps),
                      final_candidates=tuple(ranking), final_cv_rmse_N=cv_now,

@@ -170,7 +170,9 @@ class DiagnoseOptions:
     must exceed; max_additions; noise_N: the force noise [N] (None: estimated once from the
     data, model-free, and used by every model); baseline_iterations / refit_iterations:
     Levenberg-Marquardt caps; chi2_tol: a fit stops when chi^2 (noise units) falls by less
-    than this per iteration; progress: progress bars.
+    than this per iteration; refine_pivots: when no candidate is significant and the
+    residuals are still systematic, try the law with one more unwrinkled and wrinkled pivot
+    (:mod:`fitting._diagnose.refinement`); progress: progress bars.
     """
 
     alpha: float = 0.01
@@ -180,6 +182,7 @@ class DiagnoseOptions:
     baseline_iterations: int = 40
     refit_iterations: int = 15
     chi2_tol: float = 0.05
+    refine_pivots: bool = True
     progress: bool = True
 
 

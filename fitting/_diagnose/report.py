@@ -36,8 +36,13 @@ def diagnosis_report(diagnosis) -> str:
                                                f"N, bias {g.bias_N:+.3g} N" for g in worst))
     for k, step in enumerate(diagnosis.steps):
         lines.append("")
-        lines.append(f"step {k + 1}: candidates against the current model, best first -> "
-                     f"add {step.added}")
+        if step.refinement:
+            layout = ",".join(str(n) for n in step.fit.problem.scaling.pivots_per_regime)
+            lines.append(f"step {k + 1}: no candidate is significant and the residuals are "
+                         f"still systematic -> refine the law's pivots to ({layout})")
+        else:
+            lines.append(f"step {k + 1}: candidates against the current model, best first "
+                         f"-> add {step.added}")
         lines += _ranking_lines(step.candidates)
         lines += ["  " + words for words in step.backward]
     if diagnosis.final_candidates:
@@ -48,9 +53,12 @@ def diagnosis_report(diagnosis) -> str:
     lines.append(f"{'model':<34}{'RMSE [N]':>10}{'max |err| [N]':>15}{'bias [N]':>10}"
                  f"{'CV RMSE [N]':>13}  residuals")
     models = [("baseline", diagnosis.baseline_comparison, diagnosis.baseline_cv_rmse_N)]
-    for step in diagnosis.steps:
-        models.append(("+ " + " + ".join(step.in_model), step.comparison,
-                       step.candidates[0].cv_rmse_N))
+    for k, step in enumerate(diagnosis.steps):
+        label = "+ " + " + ".join(step.in_model) if step.in_model else "baseline"
+        if step.refinement or any(s.refinement for s in diagnosis.steps[:k]):
+            label += ", pivots " + ",".join(
+                str(n) for n in step.fit.problem.scaling.pivots_per_regime)
+        models.append((label, step.comparison, step.cv_rmse_N))
     for label, comparison, cv in models:
         lines.append(f"{label:<34}{comparison.rmse_N:>10.4g}{comparison.max_error_N:>15.4g}"
                      f"{comparison.bias_N:>10.3g}{cv:>13.4g}  "

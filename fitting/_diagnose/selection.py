@@ -190,3 +190,52 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
                          f"(BIC {-gain:+.1f}" + ("" if plausible else ", implausible size")
                          + ").")
     return current, removed, words
+
+
+def release_held(current: FitResult, held_since_baseline, polish, n_points):
+    """Free again the coordinates held since the baseline (``held_since_baseline``: the
+    baseline left them undetermined) that the current model determines.
+
+    An addition can make a coordinate determinable that the baseline could not see: with the
+    radius exponents freed (``radius_scaling``), the pressure exponents of the pivots are no
+    longer tied to the radius; with shear taking its share of the deflection, the bending
+    law's wrinkled pivots move. The refit from ``current`` with every held coordinate freed
+    says which now have a finite standard error; those are kept free (refitted alone if some
+    stay undetermined) when the BIC, in units of the refit's residual scatter as in the
+    ranking, falls. Returns ``(model, released names, words)``; ``current`` unchanged (and
+    no names) when none is determined or freeing them does not pay."""
+    names = [n for n in held_since_baseline if n not in current.problem.free_names]
+    if not names:
+        return current, [], []
+    problem = current.problem
+    free = list(problem.free_names)
+    try:
+        trial = fit_problem(problem.with_free(free + names, current.vector), polish)
+        errors = dict(zip(trial.problem.free_names, trial.free_standard_errors))
+        determined = [n for n in names if math.isfinite(errors[n])]
+        if determined and len(determined) < len(names):
+            vector = np.array(trial.vector, float)
+            for name in names:
+                if name not in determined:
+                    vector[problem.names.index(name)] = current.vector[problem.names.index(name)]
+            trial = fit_problem(problem.with_free(free + determined, vector), polish)
+            errors = dict(zip(trial.problem.free_names, trial.free_standard_errors))
+            determined = [n for n in determined if math.isfinite(errors[n])]
+            if len(determined) < len(trial.problem.free_names) - len(free):
+                return current, [], []  # the second refit lost one again: keep them held
+    except FitError:
+        return current, [], []
+    if not determined:
+        return current, [], []
+    c = max(1.0, dispersion(trial))
+    gain = bic(current, n_points, c) - bic(trial, n_points, c)
+    if gain <= 0.0:
+        return current, [], [
+            f"{', '.join(determined)} (held since the baseline): determined by this model, "
+            f"but freeing {'them' if len(determined) > 1 else 'it'} does not pay (BIC "
+            f"{-gain:+.1f}): held as before."]
+    return trial, determined, [
+        f"{', '.join(determined)} (held since the baseline, which did not determine "
+        f"{'them' if len(determined) > 1 else 'it'}): determined by this model and freed "
+        f"again: RMSE {current.rmse:.4g} -> "
+        f"{trial.rmse:.4g} N, BIC {-gain:+.1f}."]

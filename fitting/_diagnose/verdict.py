@@ -61,6 +61,8 @@ def verdict_words(baseline, baseline_comparison, steps, in_model, final_comparis
     else:
         final = steps[-1].fit
         for step in steps:
+            if step.refinement:  # its words are among the statements after the verdict's
+                continue
             row = step.candidates[0]
             values = ", ".join(f"{k.split('.', 1)[1]} = {v:.4g}" for k, v in row.estimates.items())
             cv_words = (f"cross-validated error {step.current_cv_rmse_N:.3g} -> "
@@ -101,7 +103,7 @@ def verdict_words(baseline, baseline_comparison, steps, in_model, final_comparis
         words.append(f"{row.effect} improves the fit but is not added: "
                      + "; ".join(row.reasons) + ".")
     for step in steps:  # implausible rivals that would have won a step
-        for row in step.candidates:
+        for row in step.candidates if not step.refinement else ():
             if not row.plausible and row.delta_bic < step.candidates[0].delta_bic:
                 words.append(f"At the step that added {step.added}: " + "; ".join(
                     r for r in row.reasons if "explains it only at" in r) + ".")

@@ -176,7 +176,8 @@ def draw_ranking(ax, rows, threshold: float, title: str) -> None:
 def ranking_figure(diagnosis) -> Figure:
     """One panel per ranking (each addition, then the final one), drawn by
     :func:`draw_ranking`."""
-    rankings = [(f"step {i + 1}: added {s.added}", s.candidates)
+    rankings = [(f"step {i + 1}: " + ("none significant, pivots refined" if s.refinement
+                                      else f"added {s.added}"), s.candidates)
                 for i, s in enumerate(diagnosis.steps)]
     if diagnosis.final_candidates:
         rankings.append(("final: none significant" if diagnosis.stop_reason.startswith("no")
