@@ -92,6 +92,9 @@ def _add_common(parser, default_out) -> None:
                              "the scatter of the data, without a model)")
     add_model_size_arguments(parser)
     parser.add_argument("--max-additions", type=positive_int, default=3)
+    parser.add_argument("--no-refine", action="store_true",
+                        help="do not refine the law's pivots when no candidate is significant "
+                             "and the residuals are still systematic")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -126,6 +129,7 @@ def run_diagnose(args) -> int:
             candidates = tuple(known[name] for name in wanted)
         options = DiagnoseOptions(noise_N=args.noise_N,
                                   max_additions=args.max_additions,
+                                  refine_pivots=not args.no_refine,
                                   progress=not args.quiet)
         rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
         print(f"diagnosing {len(data)} curves ({data.point_count} points) from {args.data}; "
