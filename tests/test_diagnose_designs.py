@@ -17,7 +17,7 @@ validity check, plausible sizes, the boundary mixture, the second start of a ref
 tested on constructed inputs in ``tests/test_diagnosis_rules.py``. The other designs run in
 ``experiments/diagnose_designs.py`` (``experiments/results/diagnose_designs.txt``);
 ``tf_shear`` passes there since the diagnosis refines the law's pivots when the residuals stay
-systematic (0.88x the floor, run I), but needs about ten minutes on two cores (a second
+systematic (0.87x the floor, run I), but needs about five minutes on two cores (a second
 compiled model), so it has no test here; the refinement's start is tested in
 ``tests/test_diagnosis_rules.py``.
 """
