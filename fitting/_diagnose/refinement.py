@@ -99,10 +99,14 @@ def refine_pivots(current: FitResult, in_model, by_name, data, rig, fit_options,
     ``bic_threshold``."""
     scaling = refined_scaling(current.problem.scaling)
     layout = ",".join(str(n) for n in scaling.pivots_per_regime)
+    effect_names = [n for e in in_model for n in parameter_names(by_name[e])]
+    pivots = scaling.names()
+    if n_points <= 2 * (len(pivots) + len(effect_names)):
+        return None, [], [f"The law refined to pivots ({layout}) was not tried: "
+                          f"{len(pivots) + len(effect_names)} coordinates for {n_points} "
+                          "points."]
     problem = make_problem(data, scaling, rig, fit_options, effects=candidates)
     start = refined_start(current, problem)
-    effect_names = [n for e in in_model for n in parameter_names(by_name[e])]
-    pivots = [n for n in problem.names if n not in problem.effect_names]
     try:
         refit = fit_problem(problem.with_free(pivots + effect_names, start), fit_options)
         # As for the baseline: what the data do not determine is held where the fit left it

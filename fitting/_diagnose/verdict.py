@@ -91,8 +91,11 @@ def verdict_words(baseline, baseline_comparison, steps, in_model, final_comparis
                         f"cross-validated error {row.cv_rmse_N:.3g} and {rival.cv_rmse_N:.3g} "
                         f"N). {step.added} is kept for its lower BIC; check that its value is "
                         f"plausible. " + _separation_advice(pair, fixed))
+        model = ", ".join(in_model) or "no effect"
+        if any(step.refinement for step in steps):
+            model += " and the refined pivots"
         words.append(
-            f"With {', '.join(in_model) or 'nothing'} the RMSE falls from {baseline.rmse:.3g} "
+            f"With {model} the RMSE falls from {baseline.rmse:.3g} "
             f"N to {final.rmse:.3g} N (noise {noise:.3g} N). "
             + ("The remaining residuals are noise." if not final_comparison.verdict.systematic
                else "The remaining residuals are still systematic: "
