@@ -42,7 +42,7 @@ from .ranking import (
 from .refinement import refine_pivots
 from .report import diagnosis_report
 from .score import chi2, parameter_names, point_count
-from .selection import backward_step, release_held
+from .selection import backward_step, hold_undetermined_where_left, release_held
 from .separation import _effect_values, separation_statements
 from .validation import blocked_cross_validation
 from .verdict import noise_words, verdict_words
@@ -197,14 +197,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         baseline = fit_problem(problem, fit_options)
         # Coordinates the data do not determine only drift (they change chi^2 by less than
         # noise) and make every refit slow: hold them at their baseline values from here on.
-        undetermined = [name for name, se in zip(baseline.problem.free_names,
-                                                 baseline.free_standard_errors)
-                        if not math.isfinite(se)]
-        if undetermined:
-            kept = [n for n in baseline.problem.free_names if n not in undetermined]
-            baseline = fit_problem(baseline.problem.with_free(kept, baseline.vector),
-                                   fit_options)
-        still_held = list(undetermined)
+        baseline, still_held = hold_undetermined_where_left(baseline, fit_options)
         if bar is not None:
             bar.update(1)
         baseline_comparison = compare(baseline)
@@ -228,15 +221,16 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
                 if refined is not None:
                     current, comparison_now = refined, compare(refined)
                     still_held = list(held_refined)
+                    refined_cv = blocked_cross_validation(current).rmse_N
                     steps.append(DiagnosisStep(
                         added="pivot_refinement", candidates=tuple(ranking), fit=current,
                         comparison=comparison_now, current_cv_rmse_N=cv_now,
                         backward=tuple(words), in_model=tuple(in_model), refinement=True,
-                        refined_cv_rmse_N=blocked_cross_validation(current).rmse_N))
+                        refined_cv_rmse_N=refined_cv))
                     if remaining:
                         ranking, cv_now = rank_candidates(current, remaining, options, bar)
                         continue
-                    ranking, cv_now = [], blocked_cross_validation(current).rmse_N
+                    ranking, cv_now = [], refined_cv
                 else:
                     refinement_words = words
             if best is None:

@@ -34,7 +34,7 @@ from .._calibrate.fit import fit_problem
 from .._calibrate.problem import FitError, make_problem
 from .._calibrate.result import FitResult
 from .score import chi2, parameter_names
-from .selection import bic
+from .selection import bic, hold_undetermined_where_left
 
 
 def refined_scaling(scaling: PivotScaling) -> PivotScaling:
@@ -111,11 +111,7 @@ def refine_pivots(current: FitResult, in_model, by_name, data, rig, fit_options,
         refit = fit_problem(problem.with_free(pivots + effect_names, start), fit_options)
         # As for the baseline: what the data do not determine is held where the fit left it
         # (resetting it to the start would undo the part of the fit it carried).
-        held = [name for name, se in zip(refit.problem.free_names, refit.free_standard_errors)
-                if not math.isfinite(se)]
-        if held:
-            kept = [name for name in refit.problem.free_names if name not in held]
-            refit = fit_problem(refit.problem.with_free(kept, refit.vector), fit_options)
+        refit, held = hold_undetermined_where_left(refit, fit_options)
     except FitError as error:
         return None, [], [f"The law refined to pivots ({layout}) could not be fitted: {error}."]
     # The held coordinates moved in the first fit, so all of its coordinates are counted.

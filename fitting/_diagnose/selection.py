@@ -192,6 +192,18 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
     return current, removed, words
 
 
+def hold_undetermined_where_left(result: FitResult, fit_options):
+    """Hold the coordinates ``result`` leaves undetermined (infinite standard error) where it
+    left them and refit the rest from there (the baseline and the refined law do this: they
+    would only drift along them). Returns ``(model, held names)``."""
+    held = [name for name, se in zip(result.problem.free_names, result.free_standard_errors)
+            if not math.isfinite(se)]
+    if held:
+        kept = [name for name in result.problem.free_names if name not in held]
+        result = fit_problem(result.problem.with_free(kept, result.vector), fit_options)
+    return result, held
+
+
 def release_held(current: FitResult, held_since_baseline, polish, n_points):
     """Free again the coordinates held since the baseline (``held_since_baseline``: the
     baseline left them undetermined) that the current model determines.
