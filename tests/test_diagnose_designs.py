@@ -9,16 +9,18 @@ tension-field truth across radii, and the one-pivot spline cannot follow its lin
 unwrinkled regime, so the model-structure extensions ``radius_scaling`` and
 ``unwrinkled_linearity`` may join the verdict; no physical effect but the hidden one may.
 
-CI runs three designs (README "Hidden-effect designs"): ``tf_reinforcement``, the issue's
-failing design (reinforcement's score is 0 at step 1, where the likelihood ratio on its
-refit later adds it), the one-radius control, and ``tf_shear`` (below); their 6 x 14 shape
-shares the compiled model of ``tests/test_diagnose_effects.py``. The other rules (blocked cross-validation and its
-validity check, plausible sizes, the boundary mixture, the second start of a refit) are
-tested on constructed inputs in ``tests/test_diagnosis_rules.py``. The other designs run in
-``experiments/diagnose_designs.py`` (``experiments/results/diagnose_designs.txt``);
-``tf_shear`` runs here too: the only design that exercises the pivot refinement end to end
-(a second compiled model, about four minutes on top of the shared one; run I: 0.87x the
-floor); the refinement's start is tested on its own in ``tests/test_diagnosis_rules.py``.
+This file runs three designs (README "Hidden-effect designs"): ``tf_reinforcement``, the
+issue's failing design (reinforcement's score is 0 at step 1, where the likelihood ratio on
+its refit later adds it), the one-radius control, and ``tf_shear`` (below); their 6 x 14
+shape shares the compiled model of ``tests/test_diagnose_effects.py``. The other three
+(``tf_clamp_compliance``, ``tf_self_weight``, the four-curve control) run in
+``tests/test_diagnose_designs_more.py``, and all six in ``experiments/diagnose_designs.py``
+(``experiments/results/diagnose_designs.txt``). The other rules (blocked cross-validation
+and its validity check, plausible sizes, the boundary mixture, the second start of a refit)
+are tested on constructed inputs in ``tests/test_diagnosis_rules.py``. ``tf_shear`` is the
+only design that exercises the pivot refinement end to end (a second compiled model, about
+four minutes on top of the shared one; run I: 0.87x the floor); the refinement's start is
+tested on its own in ``tests/test_diagnosis_rules.py``.
 """
 
 import functools
