@@ -36,7 +36,6 @@ from jax.flatten_util import ravel_pytree
 import jaxtube as jt
 from jaxtube._equilibrium import _model_hessian, _model_objective, tube_reference_geometry
 from jaxtube._mechanics.kinematics import relative_joint_rotation
-from jaxtube._rotation import matmul3, rotation_matrix, rotation_vector
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_solver  # noqa: E402
@@ -78,7 +77,9 @@ def quaternion_relative_rotation(u, v):
 
 
 def matrix_relative_rotation(u, v):
-    return rotation_vector(matmul3(rotation_matrix(-u), rotation_matrix(v)))
+    """The engine's joint rotation (``relative_joint_rotation``) with identity maps."""
+    eye = jnp.eye(3, dtype=u.dtype)
+    return relative_joint_rotation(u, v, eye, eye, False)
 
 
 def main(argv=None) -> int:

@@ -47,13 +47,18 @@ def floor(name: str) -> float:
     return DESIGNS[name]["noise_floor_N"]
 
 
+def physical_effects(diagnosis: ft.Diagnosis) -> list[str]:
+    """The verdict's physical effects (the built-in ones; not the model's extensions)."""
+    return [effect for effect in diagnosis.verdict if effect in ft.BUILT_IN_EFFECTS]
+
+
 def test_reinforcement_is_found_by_the_likelihood_ratio_on_its_refit():
     """Six curves, 2 pressures x 3 radii, EI_r = 20 N m^2 hidden. The verdict is
     reinforcement (with the model-structure extensions); its refit decided, whatever its
     score said."""
     name = "tf_reinforcement"
     diagnosis = diagnosis_of(name)
-    physical = [effect for effect in diagnosis.verdict if effect in ft.BUILT_IN_EFFECTS]
+    physical = physical_effects(diagnosis)
     assert physical == ["reinforcement"], diagnosis.report()
     assert set(diagnosis.verdict) <= {"reinforcement", *ft.MODEL_EXTENSIONS}
     assert diagnosis.baseline.rmse > 1.3 * floor(name)  # the baseline really misses
@@ -78,7 +83,7 @@ def test_control_with_one_radius_names_no_physical_effect():
     control ended at 1.44x, and under an earlier rule with a false ``reinforcement``)."""
     name = "tf_none_one_radius"
     diagnosis = diagnosis_of(name)
-    assert not [e for e in diagnosis.verdict if e in ft.BUILT_IN_EFFECTS], diagnosis.report()
+    assert not physical_effects(diagnosis), diagnosis.report()
     assert "unwrinkled_linearity" in diagnosis.verdict
     assert diagnosis.baseline.rmse > 1.3 * floor(name)
     assert diagnosis.final.rmse <= 1.3 * floor(name), diagnosis.report()
@@ -95,7 +100,7 @@ def test_shear_is_found_and_the_pivots_refined_when_the_residuals_stay_systemati
     against it, and ends within 1.3x the floor with residuals that are noise."""
     name = "tf_shear"
     diagnosis = diagnosis_of(name)
-    physical = [effect for effect in diagnosis.verdict if effect in ft.BUILT_IN_EFFECTS]
+    physical = physical_effects(diagnosis)
     assert physical == ["shear"], diagnosis.report()
     assert set(diagnosis.verdict) <= {"shear", *ft.MODEL_EXTENSIONS}
     refinements = [k for k, step in enumerate(diagnosis.steps) if step.refinement]

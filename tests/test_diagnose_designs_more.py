@@ -16,7 +16,7 @@ import pytest
 
 import fitting as ft
 
-from .test_diagnose_designs import diagnosis_of, floor
+from .test_diagnose_designs import diagnosis_of, floor, physical_effects
 
 HIDDEN = {"tf_clamp_compliance": "clamp_compliance", "tf_self_weight": "self_weight"}
 
@@ -24,7 +24,7 @@ HIDDEN = {"tf_clamp_compliance": "clamp_compliance", "tf_self_weight": "self_wei
 @pytest.mark.parametrize("name", sorted(HIDDEN))
 def test_the_hidden_effect_is_the_only_physical_effect_and_the_fit_reaches_the_floor(name):
     diagnosis = diagnosis_of(name)
-    physical = [effect for effect in diagnosis.verdict if effect in ft.BUILT_IN_EFFECTS]
+    physical = physical_effects(diagnosis)
     assert physical == [HIDDEN[name]], diagnosis.report()
     assert set(diagnosis.verdict) <= {HIDDEN[name], *ft.MODEL_EXTENSIONS}
     assert diagnosis.baseline.rmse > 1.3 * floor(name)  # the baseline really misses
@@ -40,7 +40,7 @@ def test_four_curve_control_names_no_physical_effect():
     model-structure extensions, never a physical effect."""
     name = "tf_none_four_curves"
     diagnosis = diagnosis_of(name)
-    assert not [e for e in diagnosis.verdict if e in ft.BUILT_IN_EFFECTS], diagnosis.report()
+    assert not physical_effects(diagnosis), diagnosis.report()
     assert "radius_scaling" in diagnosis.verdict, diagnosis.report()
     assert diagnosis.baseline.rmse > 1.3 * floor(name)
     assert diagnosis.final.rmse <= 1.3 * floor(name), diagnosis.report()
