@@ -182,7 +182,10 @@ def drive_to_dead_load(
        stiffness is not positive (a snap-through: ``F`` falls as ``u`` grows), a full
        ``max_increment`` towards ``W``. A refused step (not converged) halves the increment
        and keeps the drive where it was. Once ``|F - W| <= force_tolerance * max(|W|, 1 N)``
-       the remaining steps are skipped.
+       the remaining steps solve again where the drive stands (converged there: one
+       linearisation each, no Newton step). The start (1.'s state at ``u0``) is the scan's
+       first pass, so the program holds one controlled solve, not three (each traced solve
+       is a copy of the Newton iteration to compile).
     3. The dead-load problem (``params`` as given) is solved from the driven state: the
        equilibrium reported, with the solver's own stopping rule (Newton starts within
        ``force_tolerance`` of it).
@@ -230,33 +233,36 @@ def drive_to_dead_load(
         return solve_load_level(structure, path_params, path_geometry, (node, direction, u),
                                 state, lam, solver, 1.0)
 
-    # The start as a controlled solution (at its own displacement: no Newton step).
-    first = controlled(state0, jnp.concatenate([lam0, jnp.zeros((1,))]), u0)
-
+    # One controlled solve in the program (each traced solve is a copy of the Newton
+    # iteration to compile): the scan's first pass is the start itself (at its own
+    # displacement: no Newton step), and a finished drive solves again where it stands
+    # (converged there: no Newton step) rather than branching to a second solve.
     def step(carry, _):
-        state, lam, u, force, stiffness, increment, done = carry
+        state, lam, u, force, stiffness, increment, done, started = carry
         secant = stiffness > 0.0
         du = jnp.where(secant, (target - force) / jnp.where(secant, stiffness, 1.0),
                        jnp.sign(target - force) * increment)
-        du = jnp.clip(du, -increment, increment)
-        trial = jax.lax.cond(done, lambda: controlled(state, lam, u),
-                             lambda: controlled(state, lam, u + du))
+        du = jnp.where(started & ~done, jnp.clip(du, -increment, increment), 0.0)
+        trial = controlled(state, lam, u + du)
         accepted = trial.converged & ~done
         new_force = trial.control_force
         new_stiffness = (new_force - force) / jnp.where(du == 0.0, 1.0, du)
+        # (the start is taken as it is, converged or not: the drive goes on from it)
         pick = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
-            lambda a, b: jnp.where(accepted, a, b), new, old)
+            lambda a, b: jnp.where(accepted | ~started, a, b), new, old)
         state, lam = pick((trial.state, trial.multipliers), (state, lam))
         u, force = pick((u + du, new_force), (u, force))
-        stiffness = jnp.where(accepted, new_stiffness, stiffness)
-        increment = jnp.where(done | accepted, increment, 0.5 * increment)
+        stiffness = jnp.where(accepted & started, new_stiffness, stiffness)
+        increment = jnp.where(done | accepted | ~started, increment, 0.5 * increment)
         done = done | (accepted & (jnp.abs(new_force - target) <= tolerance))
-        return (state, lam, u, force, stiffness, increment, done), trial
+        return (state, lam, u, force, stiffness, increment, done, jnp.ones((), bool)), trial
 
-    start = (first.state, first.multipliers, u0, first.control_force, jnp.zeros(()),
-             jnp.asarray(max_increment, dtype=float),
-             first.converged & (jnp.abs(first.control_force - target) <= tolerance))
-    (state, lam, _, _, _, _, reached), path = jax.lax.scan(step, start, None, length=steps)
+    start = (state0, jnp.concatenate([lam0, jnp.zeros((1,))]), u0, jnp.zeros(()),
+             jnp.zeros(()), jnp.asarray(max_increment, dtype=float), jnp.zeros((), bool),
+             jnp.zeros((), bool))
+    (state, lam, _, _, _, _, reached, _), path = jax.lax.scan(step, start, None,
+                                                                length=steps + 1)
+    path = jax.tree_util.tree_map(lambda x: x[1:], path)
     equilibrium = solve_load_level(structure, params, geometry, None, state, lam[:-1], solver,
                                    1.0)
     return DrivenEquilibrium(equilibrium, path, target, reached)

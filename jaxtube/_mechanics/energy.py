@@ -23,6 +23,7 @@ from .._rotation import inverse_right_jacobian_transpose, matmul3, matvec3, tran
 from .._structure.structure import Structure, StructureParameters
 from .geometry import ReferenceGeometry, take_rows
 from .kinematics import Configuration, JointSet, configuration, spring_joints
+from .law_groups import law_groups
 
 
 def shear_stiffness(structure: Structure, params: StructureParameters) -> Array:
@@ -43,26 +44,22 @@ def shear_energy(structure: Structure, geometry: ReferenceGeometry, params, stat
     return 0.5 * jnp.sum(stiffness * geometry.length * jnp.sum(state["segment_shear"] ** 2, -1))
 
 
-def law_groups(law_tube: tuple[int, ...]) -> dict[int, np.ndarray]:
-    groups: dict[int, list[int]] = {}
-    for j, t in enumerate(law_tube):
-        groups.setdefault(t, []).append(j)
-    return {t: np.array(js, dtype=np.int32) for t, js in groups.items()}
-
-
 def strain_energy(joints: JointSet, params: StructureParameters) -> Array:
     """Sum over joints of ``l [W_bend(kappa_b^2) + W_twist(kappa_t^2)]`` [J]."""
     total = jnp.zeros(())
     radius_all = take_rows(params.node_radius, joints.node)
-    for tube, idx in law_groups(joints.law_tube).items():
+    for group in law_groups(joints.law_tube, params.bending_laws, params.torsion_laws):
+        idx = group.joints
         length = take_rows(joints.tributary, idx)
         curvature = take_rows(joints.rotation, idx) / length[:, None]
-        pressure = params.pressure[tube]
+        pressure = group.per_joint(params.pressure)
         radius = take_rows(radius_all, idx)
         bend_sq = curvature[:, 0] ** 2 + curvature[:, 1] ** 2
         twist_sq = curvature[:, 2] ** 2
-        w = params.bending_laws[tube].energy_density(bend_sq, pressure, radius)
-        w = w + params.torsion_laws[tube].energy_density(twist_sq, pressure, radius)
+        w = group.apply(group.law(params.bending_laws), "energy_density", bend_sq, pressure,
+                        radius)
+        w = w + group.apply(group.law(params.torsion_laws), "energy_density", twist_sq,
+                            pressure, radius)
         total = total + jnp.sum(length * w)
     return total
 
@@ -75,21 +72,25 @@ def joint_moments(joints: JointSet, params: StructureParameters) -> tuple[Array,
     moment = jnp.zeros((count, 3))
     regime = jnp.zeros((count,), dtype=jnp.int32)
     radius_all = params.node_radius[np.array(joints.node, dtype=np.int32)]
-    for tube, idx in law_groups(joints.law_tube).items():
+    for group in law_groups(joints.law_tube, params.bending_laws, params.torsion_laws):
+        idx = group.joints
         curvature = joints.rotation[idx] / joints.tributary[idx][:, None]
-        pressure, radius = params.pressure[tube], radius_all[idx]
+        pressure, radius = group.per_joint(params.pressure), radius_all[idx]
         bend = jnp.sqrt(curvature[:, 0] ** 2 + curvature[:, 1] ** 2)
         safe = jnp.where(bend > 0, bend, 1.0)
-        law_b, law_t = params.bending_laws[tube], params.torsion_laws[tube]
-        scale = jnp.where(bend > 0, law_b.moment(bend, pressure, radius) / safe,
-                          law_b.initial_stiffness(pressure, radius))
+        law_b, law_t = group.law(params.bending_laws), group.law(params.torsion_laws)
+        # (the initial stiffness broadcast to the joints: a one-tube law gives a scalar)
+        initial = jnp.broadcast_to(group.apply(law_b, "initial_stiffness", pressure,
+                                               radius), bend.shape)
+        scale = jnp.where(bend > 0, group.apply(law_b, "moment", bend, pressure, radius) / safe,
+                          initial)
         m = jnp.concatenate(
             [scale[:, None] * curvature[:, :2],
-             law_t.moment(curvature[:, 2], pressure, radius)[:, None]], axis=1,
+             group.apply(law_t, "moment", curvature[:, 2], pressure, radius)[:, None]], axis=1,
         )
         moment = moment.at[idx].set(m)
-        r = jnp.maximum(law_b.regime(bend, pressure, radius),
-                        law_t.regime(curvature[:, 2], pressure, radius))
+        r = jnp.maximum(group.apply(law_b, "regime", bend, pressure, radius),
+                        group.apply(law_t, "regime", curvature[:, 2], pressure, radius))
         regime = regime.at[idx].set(r.astype(jnp.int32))
     return moment, regime
 

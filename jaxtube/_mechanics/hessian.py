@@ -15,7 +15,7 @@ from jax import Array
 from .._elements import dense_from_blocks, element_hessian_blocks, state_index
 from .._rotation import matvec3, rotation_matrix, transpose3
 from .._structure.structure import Structure
-from .energy import constraints, law_groups, load_potential, shear_stiffness
+from .energy import constraints, load_potential, shear_stiffness
 from .geometry import ReferenceGeometry
 from .kinematics import (
     Configuration,
@@ -23,6 +23,7 @@ from .kinematics import (
     relative_joint_rotation,
     segment_steps,
 )
+from .law_groups import law_groups
 
 
 def lagrangian_hessian(structure: Structure, geometry: ReferenceGeometry, params, control,
@@ -98,11 +99,13 @@ def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry,
     topology = structure.spring_joint_topology()
     parent, child = topology.parent_segment, topology.child_segment
     nodes, law = topology.node, topology.law
-    for tube, idx in law_groups(law).items():
-        bending, torsion = params.bending_laws[tube], params.torsion_laws[tube]
-        pressure = params.pressure[tube]
+    # One Hessian of the joint energy per group of tubes sharing a law form, not per tube
+    # (law_groups: the law's leaves taken per joint).
+    for group in law_groups(law, params.bending_laws, params.torsion_laws):
+        idx = group.joints
 
-        def joint_energy(pair, parent_map, child_map, grounded, tributary, radius):
+        def joint_energy(pair, parent_map, child_map, grounded, tributary, radius, bending,
+                         torsion, pressure):
             theta = relative_joint_rotation(pair[:3], pair[3:], parent_map, child_map, grounded)
             kappa = theta / tributary
             w = bending.energy_density(kappa[0] ** 2 + kappa[1] ** 2, pressure, radius)
@@ -111,9 +114,12 @@ def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry,
         a, b = np.maximum(parent[idx], 0), child[idx]
         pair = jnp.concatenate([phi[a], phi[b]], axis=1)
         radius = params.node_radius[np.array([nodes[j] for j in idx], dtype=np.int32)]
-        blocks = jax.vmap(jax.hessian(joint_energy))(
+        axis = group.law_axis
+        blocks = jax.vmap(jax.hessian(joint_energy), in_axes=(0,) * 6 + (axis,) * 3)(
             pair, geometry.joint_parent_map[idx], geometry.joint_child_map[idx],
-            parent[idx] == -1, geometry.joint_tributary[idx], radius)
+            parent[idx] == -1, geometry.joint_tributary[idx], radius,
+            group.law(params.bending_laws), group.law(params.torsion_laws),
+            group.per_joint(params.pressure))
         pair_index = np.concatenate([rotation_index[a], rotation_index[b]], axis=1)  # [Jg, 6]
         rows.append(np.broadcast_to(pair_index[:, :, None], blocks.shape))
         cols.append(np.broadcast_to(pair_index[:, None, :], blocks.shape))
