@@ -4,7 +4,6 @@ tube law, evaluated joint by joint, on a frame of three tubes with two law forms
 parameters and different pressures."""
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
@@ -13,11 +12,12 @@ import jaxtube as jt
 from jaxtube._mechanics import (
     energy_and_constraints,
     joint_moments,
-    lagrangian_hessian,
     reference_geometry,
     spring_joints,
 )
 from jaxtube._mechanics.law_groups import law_groups
+
+from .test_solver import assert_assembled_hessian_is_exact
 
 
 def _frame():
@@ -85,21 +85,4 @@ def test_grouped_energy_and_moments_equal_each_joints_own_law():
 
 def test_grouped_hessian_equals_autodiff_hessian():
     structure, params = _frame()
-    geometry = reference_geometry(structure, params)
-    z0, unravel = _random_state(structure, params, 1, scale=0.0)
-    m = energy_and_constraints(structure, geometry, unravel(z0), params, None)[1].shape[0]
-
-    def lagrangian(zz, lam):
-        energy, c = energy_and_constraints(structure, geometry, unravel(zz), params, None)
-        return energy + lam @ c
-
-    autodiff = jax.jit(jax.hessian(lagrangian))
-    assemble = jax.jit(lambda zz, lam: lagrangian_hessian(structure, geometry, params, None,
-                                                          unravel(zz), lam))
-    rng = np.random.default_rng(2)
-    for scale in (0.0, 0.3):
-        z = z0 + scale * jnp.asarray(rng.standard_normal(z0.shape))
-        lam = 10.0 * jnp.asarray(rng.standard_normal(m))
-        expected = autodiff(z, lam)
-        np.testing.assert_allclose(assemble(z, lam), expected, rtol=1e-9,
-                                   atol=1e-9 * float(jnp.max(jnp.abs(expected))))
+    assert_assembled_hessian_is_exact(structure, params, None, seed=2)

@@ -196,17 +196,23 @@ def test_assembled_hessian_equals_autodiff_hessian(case):
     """The element-assembled Lagrangian Hessian the solver uses is the exact Hessian: it
     equals jax.hessian of E + lambda . c at random states and multipliers (also at zero
     rotation, where the exponential and logarithm maps switch to their Taylor branches)."""
+    _, (structure, params), control = _hessian_cases()[case]
+    assert_assembled_hessian_is_exact(structure, params, control, seed=case)
+
+
+def assert_assembled_hessian_is_exact(structure, params, control, seed):
+    """The assembled Lagrangian Hessian equals ``jax.hessian`` of ``E + lambda . c`` at the
+    undeformed state and at a random one (random multipliers; ``seed`` for both)."""
     from jax.flatten_util import ravel_pytree
 
     from jaxtube._mechanics import energy_and_constraints as _objective
     from jaxtube._mechanics import lagrangian_hessian
 
-    _, (structure, params), control = _hessian_cases()[case]
     geometry = reference_geometry(structure, params)
     state0 = jt.initial_state(structure, params)
     z0, unravel = ravel_pytree(state0)
     m = _objective(structure, geometry, state0, params, control)[1].shape[0]
-    rng = np.random.default_rng(case)
+    rng = np.random.default_rng(seed)
 
     def lagrangian(zz, lam):
         energy, c = _objective(structure, geometry, unravel(zz), params, control)

@@ -83,13 +83,10 @@ def law_groups(law_tube, bending_laws, torsion_laws) -> list[LawGroup]:
     """The joints (tube of each: ``law_tube`` ``[J]``) grouped by the PyTree structure of
     their tubes' bending and torsion laws, in order of first appearance."""
     law_tube = np.asarray(law_tube, dtype=np.int32).reshape(-1)
-    keys: dict = {}
-    groups: list[list[int]] = []
+    tube_key = {int(t): (_law_key(bending_laws[int(t)]), _law_key(torsion_laws[int(t)]))
+                for t in np.unique(law_tube)}
+    groups: dict = {}  # (insertion order: first appearance)
     for j, tube in enumerate(law_tube):
-        key = (_law_key(bending_laws[int(tube)]), _law_key(torsion_laws[int(tube)]))
-        if key not in keys:
-            keys[key] = len(groups)
-            groups.append([])
-        groups[keys[key]].append(j)
+        groups.setdefault(tube_key[int(tube)], []).append(j)
     return [LawGroup(np.array(js, dtype=np.int32), law_tube[np.array(js, dtype=np.int32)])
-            for js in groups]
+            for js in groups.values()]
