@@ -8,11 +8,16 @@ import sys
 import textwrap
 
 SCRIPT = textwrap.dedent("""
+    import os
     import jax, jax.numpy as jnp
     import jaxtube as jt
-    path = jt.enable_compilation_cache(min_compile_seconds=0.0)
+    path = jt.enable_compilation_cache(min_compile_seconds=0.0,
+                                       max_bytes=int(os.environ.get("TEST_MAX_BYTES", "-1")))
     print("PATH", path)
-    print(float(jax.jit(lambda x: jnp.sin(x) * jnp.cos(2.0 * x))(0.3)))
+    if os.environ.get("TEST_PROGRAM", "a") == "a":
+        print(float(jax.jit(lambda x: jnp.sin(x) * jnp.cos(2.0 * x))(0.3)))
+    else:
+        print(float(jax.jit(lambda x: jnp.cos(x) * jnp.sin(3.0 * x))(0.3)))
 """)
 
 
@@ -24,6 +29,13 @@ def _run(tmp_path, **env):
                           text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return done.stdout
+
+
+def _entries(directory):
+    """``{name: bytes}`` of the cache's program entries (not JAX's access-time and lock
+    files)."""
+    return {p.name: p.stat().st_size for p in directory.iterdir()
+            if p.is_file() and not p.name.endswith("-atime") and not p.name.startswith(".")}
 
 
 def test_cache_directory_gets_the_compiled_program(tmp_path):
@@ -56,3 +68,29 @@ def test_the_command_line_turns_the_cache_on_unless_told_not_to(monkeypatch, tmp
     assert main(["--no-compilation-cache", "simulate", missing,
                  "--out", str(tmp_path / "b")]) == 2
     assert len(calls) == 1
+
+
+def test_the_cache_stays_below_its_bound(tmp_path):
+    """Programs of the sparse KKT routes can never be served again (the KLU analysis'
+    address is in them, ``jaxtube._compilation_cache``), so the directory is bounded: with
+    room for one program, a second one evicts the least recently used first, here one
+    written by an unbounded run (JAX's eviction failed on such entries until they were
+    given access times)."""
+    directory = tmp_path / "cache" / "jaxtube" / "xla"
+    _run(tmp_path, TEST_PROGRAM="a")
+    first = _entries(directory)
+    assert len(first) == 1
+    bound = int(1.5 * sum(first.values()))
+    _run(tmp_path, TEST_PROGRAM="b", TEST_MAX_BYTES=str(bound))
+    second = _entries(directory)
+    assert len(second) == 1 and not set(second) & set(first)  # the first one evicted
+    assert sum(second.values()) <= bound
+
+
+def test_a_zero_bound_is_refused():
+    import pytest
+
+    import jaxtube as jt
+
+    with pytest.raises(ValueError, match="max_bytes"):
+        jt.enable_compilation_cache(max_bytes=0)
