@@ -1,11 +1,14 @@
 """``jaxtube.enable_compilation_cache``: compiled programs land in the user's cache directory
-(``$XDG_CACHE_HOME/jaxtube/xla``), and ``JAXTUBE_NO_COMPILATION_CACHE=1`` turns it off.
-Each case runs in a fresh process (JAX initialises its cache once per process)."""
+(``$XDG_CACHE_HOME/jaxtube/xla``), ``JAXTUBE_NO_COMPILATION_CACHE=1`` turns it off, and the
+directory stays below its bound (``max_bytes``). Each case runs in a fresh process (JAX
+initialises its cache once per process)."""
 
 import os
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 SCRIPT = textwrap.dedent("""
     import os
@@ -88,8 +91,6 @@ def test_the_cache_stays_below_its_bound(tmp_path):
 
 
 def test_a_zero_bound_is_refused():
-    import pytest
-
     import jaxtube as jt
 
     with pytest.raises(ValueError, match="max_bytes"):
