@@ -106,7 +106,11 @@ def hang_blends(tip_load_kg, model_blend) -> tuple[float, ...]:
 LAW_FORMS = ("curvature", "moment")
 CENTRE_NODE = 29  # kite_fem numbering: the leading-edge node the centre load hangs on
 DRIVE_STEPS = 24  # displacement-controlled solves (a static count: one compiled program)
-DRIVE_INCREMENT_M = 0.1  # the drive's largest step [m]
+# The drive's largest step [m]. Measured 2026-12-05 (the same equilibria to 1e-10 m; the
+# drive's Newton steps on the four centre-load cases, 0.15 and 0.25 bar x 9.7 and 25.2 kg):
+# 0.1 m: 81, 127, 84, 110; 0.2 m: 85, 98, 69, 88. At 0.15 bar only: 0.15 m 69, 114;
+# 0.25 m 62, 91; 0.3 m 54, 123 (one 73-step solve). README, "Performance".
+DRIVE_INCREMENT_M = 0.2
 
 
 SOLVER = jt.NewtonKKT(max_steps=400)
