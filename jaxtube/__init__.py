@@ -22,6 +22,9 @@ API summary is the docstring of ``jaxtube._elements``.
 
 from . import _config  # noqa: F401, I001  (first: XLA_FLAGS and float64 before JAX runs)
 from ._compilation_cache import enable_compilation_cache as enable_compilation_cache
+from ._stored_programs import disable_traced_program_store as disable_traced_program_store
+from ._stored_programs import enable_traced_program_store as enable_traced_program_store
+from ._stored_programs import stored_jit as stored_jit
 from ._controls import DisplacementControl as DisplacementControl
 from ._controls import ForceControl as ForceControl
 from ._controls import scale_loads as scale_loads

@@ -254,3 +254,30 @@ def test_load_law_folds_the_model_structure_extensions_in(tmp_path):
     document["effects"]["shear"] = {"flexibility": 6e-5}
     path.write_text(json.dumps(document))
     assert "shear not applied" in without_effects_words(path)
+
+
+def test_the_fit_program_loaded_from_the_store_gives_the_same_residuals_and_jacobian(
+        result, tmp_path, monkeypatch):
+    """The command line stores the fit's residual-and-Jacobian program
+    (``jaxtube.stored_jit``): exported, then loaded by a new wrapper as a later process would,
+    it gives ``jax.jit``'s residuals, Jacobian and predictions exactly."""
+    problem = result.problem
+    arguments = (jnp.asarray(problem.full(problem.base[np.asarray(problem.free_index)])),
+                 *problem.residual_args())
+    want = _calibrate._residuals_and_jacobian.jitted(*arguments, **problem.static())
+    monkeypatch.delenv("JAXTUBE_NO_COMPILATION_CACHE", raising=False)
+    jt.enable_traced_program_store(tmp_path)
+    try:
+        exported = _calibrate._residuals_and_jacobian(*arguments, **problem.static())
+        loaded = jt.stored_jit(_calibrate._residuals_and_jacobian.__wrapped__,
+                               static_argnames=("rig", "scaling", "effects"))(
+            *arguments, **problem.static())
+    finally:
+        jt.disable_traced_program_store()
+    assert len(list(tmp_path.iterdir())) == 1
+    for got in (exported, loaded):
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        assert type(got[2]) is type(want[2])
+        for field in ("force", "converged", "iterations", "joint_regime"):
+            np.testing.assert_array_equal(getattr(got[2], field), getattr(want[2], field))

@@ -43,6 +43,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+import jaxtube as jt
+
 from .._bench.rig import CantileverRig, CurveBatch, TubeModel, batch_curves, unpad
 from .._bench.scaling import PivotScaling, initial_vector, reference_specimen
 from .._data import MeasuredData
@@ -164,11 +166,11 @@ def _residual_fn(vector, reference, batch_arrays, target, scale, prior_mean, pri
     return jnp.concatenate([residual, prior]), prediction
 
 
-@partial(jax.jit, static_argnames=("rig", "scaling", "effects"))
+@partial(jt.stored_jit, static_argnames=("rig", "scaling", "effects"))
 def _residuals_and_jacobian(vector, *args, rig, scaling, effects=()):
     """Residuals and their Jacobian w.r.t. the whole coordinate vector (every coordinate:
     which are free is chosen on the host, so fits that free different coordinates share
-    this compilation)."""
+    this compilation). Stored between runs by the command line (``jaxtube.stored_jit``)."""
     def fn(x):
         r, prediction = _residual_fn(x, *args, rig=rig, scaling=scaling, effects=effects)
         return r, (r, prediction)

@@ -10,8 +10,10 @@
 
 Compiled programs are kept between runs in a persistent cache under the user's cache
 directory (``jaxtube.enable_compilation_cache``: ``$XDG_CACHE_HOME/jaxtube/xla``), so a second
-run of the same command does not compile again; ``--no-compilation-cache`` or
-``JAXTUBE_NO_COMPILATION_CACHE=1`` turns it off.
+run of the same command does not compile again, and the fit's traced program is stored beside
+it (``jaxtube.enable_traced_program_store``: ``$XDG_CACHE_HOME/jaxtube/traced``), so a second
+run does not trace it again either; ``--no-compilation-cache`` or
+``JAXTUBE_NO_COMPILATION_CACHE=1`` turns both off.
 
 Exit codes (every subcommand): 0 success; 1 the run finished but some solves did not
 converge (outputs written, failures marked); 2 bad input or bad arguments (nothing written).
@@ -42,9 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"jaxtube {jt.__version__}")
     parser.add_argument(
         "--no-compilation-cache", action="store_true",
-        help="do not keep compiled programs in the user's cache directory between runs "
-             "(default: kept under $XDG_CACHE_HOME/jaxtube/xla; also "
-             "JAXTUBE_NO_COMPILATION_CACHE=1)")
+        help="do not keep compiled and traced programs in the user's cache directory "
+             "between runs (default: kept under $XDG_CACHE_HOME/jaxtube/xla and "
+             "$XDG_CACHE_HOME/jaxtube/traced; also JAXTUBE_NO_COMPILATION_CACHE=1)")
     subparsers = parser.add_subparsers(title="subcommands", metavar="COMMAND")
     for add in SUBCOMMANDS:
         add(subparsers)
@@ -60,6 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not args.no_compilation_cache:
         jt.enable_compilation_cache()
+        jt.enable_traced_program_store()
     return args.run(args)
 
 

@@ -1,0 +1,267 @@
+"""Traced programs stored on disk between runs: ``jax.jit`` without Python's tracing on a
+second run.
+
+A persistent compilation cache (``jaxtube._compilation_cache``) saves XLA's compilation,
+not Python's tracing. The fit's residual-and-Jacobian program (``jacfwd`` of a ``vmap`` of a
+``scan`` of the implicitly differentiated Newton solve) takes 6.6 s to trace and 0.7 s to
+lower on every run of ``jaxtube demo`` (measured 2026-12-05, README "Performance"), about a
+quarter of a second run. :func:`stored_jit` keeps each traced program as a serialised
+``jax.export.Exported`` (StableHLO) under ``$XDG_CACHE_HOME/jaxtube/traced``; a later process
+with the same code, the same static arguments and the same input shapes loads it instead of
+tracing (a few milliseconds) and compiles it, from the compilation cache when that is on.
+
+**What keys an entry** (sha256 of all of it):
+
+- the function's module and qualified name, and its static arguments in a canonical form
+  (:func:`canonical`: dataclasses and ``equinox`` modules field by field, sets sorted, classes
+  and functions by module and name); anything else (an object known only by its address,
+  a lambda) is not stored: the call is a plain ``jax.jit`` call;
+- the source code: every ``.py`` file of ``jaxtube``, of the function's own top-level
+  package, and of the package (or the module file) of every class or function in the static
+  arguments, so an edit to the model, the workbench or a user's own effect gives a new key.
+  A class or function without a source file (defined in ``__main__`` or a notebook cell) is
+  not stored;
+- the input tree and every leaf's shape and dtype, the versions of JAX, jaxlib, equinox and
+  NumPy, the backend and the JAX settings that change a trace (``jax_enable_x64``,
+  ``jax_numpy_dtype_promotion``, ``jax_numpy_rank_promotion``, ``jax_default_matmul_precision``).
+
+**What is never stored.** Calls under a transformation (any input a tracer: the call is
+``jax.jit``'s, differentiable as usual), inputs that are Python scalars (their weak types
+would not survive), and programs ``jax.export`` refuses: host callbacks, and custom calls
+not guaranteed stable, such as klujax's KLU solves of the sparse KKT routes (they also bake
+in an address that differs per process). Those fall back to ``jax.jit`` for the process.
+An unreadable entry (truncated, another format) is written anew.
+
+**Bounded.** After each write the directory is kept below ``max_bytes`` by deleting the
+entries used least recently (a load touches its entry). Opt out with
+``JAXTUBE_NO_COMPILATION_CACHE=1``, as for the compilation cache.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import importlib.metadata
+import os
+import pickle
+import sys
+import types
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from ._compilation_cache import OPT_OUT
+
+#: Default bound of the store [bytes] (least recently used entries go first).
+DEFAULT_MAX_BYTES = 512 * 1024**2
+_SUFFIX = ".jaxtube-traced"
+_FORMAT = 1  # the entry's layout (a dict pickled), part of every key
+_STORE: dict = {"directory": None, "max_bytes": DEFAULT_MAX_BYTES}
+
+
+def default_store_directory() -> Path:
+    """``$XDG_CACHE_HOME/jaxtube/traced``, or ``~/.cache/jaxtube/traced``."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "jaxtube" / "traced"
+
+
+def enable_traced_program_store(directory=None,
+                                max_bytes: int = DEFAULT_MAX_BYTES) -> Path | None:
+    """Store the programs of :func:`stored_jit` functions under ``directory`` (default
+    :func:`default_store_directory`) for later processes; ``max_bytes`` bounds it.
+
+    Returns the directory, or ``None`` when ``JAXTUBE_NO_COMPILATION_CACHE=1`` is set
+    (nothing is changed then). The ``jaxtube`` command turns it on with the compilation
+    cache.
+    """
+    if int(max_bytes) <= 0:
+        raise ValueError(f"enable_traced_program_store: max_bytes must be positive, got "
+                         f"{max_bytes}.")
+    if os.environ.get(OPT_OUT, "").strip() == "1":
+        return None
+    path = Path(directory) if directory is not None else default_store_directory()
+    path.mkdir(parents=True, exist_ok=True)
+    _STORE.update(directory=path, max_bytes=int(max_bytes))
+    return path
+
+
+def disable_traced_program_store() -> None:
+    """Stop storing and loading traced programs in this process."""
+    _STORE["directory"] = None
+
+
+class NotCanonical(Exception):
+    """A static argument has no form that is the same in every process."""
+
+
+def canonical(value, modules: set) -> str:
+    """A text for ``value`` that is the same in every process that has the same code, with
+    the modules it names added to ``modules``; raises :class:`NotCanonical` otherwise."""
+    if value is None or isinstance(value, (bool, int, float, complex, str, bytes, np.generic)):
+        return repr(value)
+    if isinstance(value, (tuple, list)):
+        return f"{type(value).__name__}({','.join(canonical(v, modules) for v in value)})"
+    if isinstance(value, (set, frozenset)):
+        return f"set({','.join(sorted(canonical(v, modules) for v in value))})"
+    if isinstance(value, dict):
+        items = sorted((canonical(k, modules), canonical(v, modules)) for k, v in value.items())
+        return f"dict({','.join(f'{k}:{v}' for k, v in items)})"
+    if isinstance(value, np.ndarray):
+        return f"array({value.dtype},{value.shape},{hashlib.sha256(value.tobytes()).hexdigest()})"
+    if isinstance(value, (type, types.FunctionType, types.BuiltinFunctionType)):
+        if "<" in value.__qualname__:  # a lambda or a local: no stable name
+            raise NotCanonical(repr(value))
+        modules.add(value.__module__)
+        return f"{value.__module__}:{value.__qualname__}"
+    if dataclasses.is_dataclass(value):  # equinox modules are dataclasses too
+        cls = type(value)
+        fields = ",".join(f"{f.name}={canonical(getattr(value, f.name), modules)}"
+                          for f in dataclasses.fields(value))
+        return f"{canonical(cls, modules)}({fields})"
+    raise NotCanonical(f"{type(value).__module__}.{type(value).__qualname__}")
+
+
+_DIGESTS: dict = {}  # files' (path, size, mtime) -> sha256 of their contents
+
+
+def _source_digest(module_name: str) -> str:
+    """sha256 of every ``.py`` file of ``module_name``'s top-level package (or of its one
+    file); raises :class:`NotCanonical` for a module without source files. The files are
+    read again whenever one's size or modification time changed (an edited module reloaded
+    in a notebook gets a new key)."""
+    top = module_name.split(".")[0]
+    module = sys.modules.get(top)
+    file = getattr(module, "__file__", None) if module is not None else None
+    if module_name == "__main__" or file is None:
+        raise NotCanonical(f"module {module_name} has no source file")
+    root = Path(file).parent
+    files = (sorted(root.rglob("*.py")) if Path(file).name == "__init__.py"
+             else [Path(file)])
+    signature = tuple((str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in files)
+    if signature not in _DIGESTS:
+        digest = hashlib.sha256()
+        for path in files:
+            digest.update(str(path.relative_to(root.parent)).encode())
+            digest.update(path.read_bytes())
+        _DIGESTS[signature] = digest.hexdigest()
+    return _DIGESTS[signature]
+
+
+@functools.cache
+def _library_versions() -> tuple[str, ...]:
+    return tuple(importlib.metadata.version(n) for n in ("jax", "jaxlib", "equinox", "numpy"))
+
+
+def _versions() -> str:
+    settings = ("jax_enable_x64", "jax_numpy_dtype_promotion", "jax_numpy_rank_promotion",
+                "jax_default_matmul_precision")
+    values = jax.config.values
+    return repr((_library_versions(), jax.default_backend(),
+                 [values.get(s) for s in settings], _FORMAT))
+
+
+def _entry_key(fun: Callable, static: dict, treedef, leaves) -> str:
+    modules = {fun.__module__, "jaxtube"}
+    text = canonical(dict(static), modules) + fun.__module__ + ":" + fun.__qualname__
+    text += str(treedef) + repr([(np.shape(x), str(x.dtype),
+                                  bool(getattr(x, "weak_type", False))) for x in leaves])
+    sources = sorted({_source_digest(m) for m in modules})
+    return hashlib.sha256((text + repr(sources) + _versions()).encode()).hexdigest()
+
+
+def _load(path: Path):
+    """``(jitted call of the stored program, output skeleton)``, or ``None``."""
+    try:
+        entry = pickle.loads(path.read_bytes())
+        exported = jax.export.deserialize(bytearray(entry["exported"]))
+        skeleton = entry["skeleton"]
+    except Exception:  # noqa: BLE001 - an unreadable entry is written anew
+        return None
+    try:
+        os.utime(path)  # most recently used (eviction)
+    except OSError:
+        pass
+    return jax.jit(exported.call), jax.tree_util.tree_structure(skeleton)
+
+
+def _export(flat_program: Callable, out_tree: dict, leaves, path: Path):
+    """Trace and export ``flat_program`` (a ``jax.jit`` of flat leaves to flat leaves, which
+    records its output tree in ``out_tree``), write the entry atomically. Where JAX refuses
+    the export after tracing, ``flat_program`` itself serves the process (its trace is
+    reused); where tracing failed, ``None`` (the caller's ``jax.jit`` call raises the
+    error)."""
+    try:
+        exported = jax.export.export(flat_program)(*leaves)
+        entry = {"exported": exported.serialize(),
+                 "skeleton": jax.tree_util.tree_unflatten(
+                     out_tree["tree"], list(range(out_tree["tree"].num_leaves)))}
+        blob = pickle.dumps(entry)
+    except Exception:  # noqa: BLE001 - host callbacks, unstable custom calls, unpicklable
+        return (flat_program, out_tree["tree"]) if "tree" in out_tree else None
+    temporary = path.with_name(path.name + f".{os.getpid()}.tmp")
+    try:
+        temporary.write_bytes(blob)
+        os.replace(temporary, path)
+        _evict(path.parent, _STORE["max_bytes"])
+    except OSError:  # a read-only or full disk: run on without storing
+        temporary.unlink(missing_ok=True)
+    return jax.jit(exported.call), out_tree["tree"]
+
+
+def _evict(directory: Path, max_bytes: int) -> None:
+    """Delete the least recently used entries until the directory holds ``max_bytes``."""
+    entries = sorted(((p.stat().st_mtime, p.stat().st_size, p)
+                      for p in directory.glob(f"*{_SUFFIX}")), key=lambda e: e[0])
+    total = sum(size for _, size, _ in entries)
+    for _, size, path in entries[:-1]:  # never the entry just written
+        if total <= max_bytes:
+            break
+        path.unlink(missing_ok=True)
+        total -= size
+
+
+def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable:
+    """``jax.jit(fun, static_argnames=...)`` whose traced programs are kept on disk while
+    :func:`enable_traced_program_store` is on (module docstring): a later process with the
+    same code, static arguments and input shapes skips tracing. Static arguments are passed
+    by keyword; the others are arrays (a call with a Python scalar, under a transformation,
+    or with the store off is ``jax.jit``'s)."""
+    jitted = jax.jit(fun, static_argnames=static_argnames)
+    programs: dict = {}  # key -> (call, output tree), or None: not storable
+
+    @functools.wraps(fun)
+    def call(*args, **kwargs):
+        directory = _STORE["directory"]
+        static = {k: kwargs.pop(k) for k in static_argnames if k in kwargs}
+        leaves, treedef = jax.tree_util.tree_flatten((args, kwargs))
+        if directory is None or not all(isinstance(x, (jax.Array, np.ndarray))
+                                        and not isinstance(x, jax.core.Tracer)
+                                        for x in leaves):
+            return jitted(*args, **kwargs, **static)
+        try:
+            key = _entry_key(fun, static, treedef, leaves)
+        except NotCanonical:
+            return jitted(*args, **kwargs, **static)
+        if key not in programs:
+            path = Path(directory) / f"{key}{_SUFFIX}"
+
+            out_tree = {}
+
+            def run(*flat_leaves):
+                a, k = jax.tree_util.tree_unflatten(treedef, flat_leaves)
+                leaves_out, out_tree["tree"] = jax.tree_util.tree_flatten(
+                    fun(*a, **k, **static))
+                return leaves_out
+
+            programs[key] = ((path.exists() and _load(path))
+                             or _export(jax.jit(run), out_tree, leaves, path))
+        if programs[key] is None:
+            return jitted(*args, **kwargs, **static)
+        program, out_tree = programs[key]
+        return jax.tree_util.tree_unflatten(out_tree, program(*leaves))
+
+    call.jitted = jitted  # the plain ``jax.jit`` function (tests, benchmarks)
+    return call
