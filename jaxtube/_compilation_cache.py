@@ -37,10 +37,26 @@ import jax
 OPT_OUT = "JAXTUBE_NO_COMPILATION_CACHE"
 
 
+def user_cache_directory(name: str) -> Path:
+    """``$XDG_CACHE_HOME/jaxtube/<name>``, or ``~/.cache/jaxtube/<name>`` without
+    XDG_CACHE_HOME."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "jaxtube" / name
+
+
 def default_cache_directory() -> Path:
     """``$XDG_CACHE_HOME/jaxtube/xla``, or ``~/.cache/jaxtube/xla`` without XDG_CACHE_HOME."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "jaxtube" / "xla"
+    return user_cache_directory("xla")
+
+
+def opted_in_directory(directory, default: Path) -> Path | None:
+    """``directory`` (or ``default``), created; ``None`` when ``JAXTUBE_NO_COMPILATION_CACHE=1``
+    is set (nothing is created then)."""
+    if os.environ.get(OPT_OUT, "").strip() == "1":
+        return None
+    path = Path(directory) if directory is not None else default
+    path.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 #: Default bound of the cache directory [bytes] (least recently used entries go first).
@@ -81,10 +97,9 @@ def enable_compilation_cache(directory=None, min_compile_seconds: float = 1.0,
     if max_bytes == 0 or max_bytes < -1:
         raise ValueError(f"enable_compilation_cache: max_bytes must be positive or -1 (no "
                          f"bound), got {max_bytes}.")
-    if os.environ.get(OPT_OUT, "").strip() == "1":
+    path = opted_in_directory(directory, default_cache_directory())
+    if path is None:
         return None
-    path = Path(directory) if directory is not None else default_cache_directory()
-    path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)

@@ -53,7 +53,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from ._compilation_cache import OPT_OUT
+from ._compilation_cache import opted_in_directory, user_cache_directory
 
 #: Default bound of the store [bytes] (least recently used entries go first).
 DEFAULT_MAX_BYTES = 512 * 1024**2
@@ -64,8 +64,7 @@ _STORE: dict = {"directory": None, "max_bytes": DEFAULT_MAX_BYTES}
 
 def default_store_directory() -> Path:
     """``$XDG_CACHE_HOME/jaxtube/traced``, or ``~/.cache/jaxtube/traced``."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "jaxtube" / "traced"
+    return user_cache_directory("traced")
 
 
 def enable_traced_program_store(directory=None,
@@ -80,11 +79,9 @@ def enable_traced_program_store(directory=None,
     if int(max_bytes) <= 0:
         raise ValueError(f"enable_traced_program_store: max_bytes must be positive, got "
                          f"{max_bytes}.")
-    if os.environ.get(OPT_OUT, "").strip() == "1":
-        return None
-    path = Path(directory) if directory is not None else default_store_directory()
-    path.mkdir(parents=True, exist_ok=True)
-    _STORE.update(directory=path, max_bytes=int(max_bytes))
+    path = opted_in_directory(directory, default_store_directory())
+    if path is not None:
+        _STORE.update(directory=path, max_bytes=int(max_bytes))
     return path
 
 
