@@ -225,26 +225,31 @@ def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable
     :func:`enable_traced_program_store` is on (module docstring): a later process with the
     same code, static arguments and input shapes skips tracing. Static arguments are passed
     by keyword; the others are arrays (a call with a Python scalar, under a transformation,
-    or with the store off is ``jax.jit``'s)."""
+    or with the store off is ``jax.jit``'s).
+
+    The returned function also has ``compile(*args, **kwargs)``: the program for these
+    arguments compiled ahead of time (``jax.jit(...).lower(...).compile()``), a callable
+    taking the same arguments (to time compilation apart from the run)."""
     jitted = jax.jit(fun, static_argnames=static_argnames)
     programs: dict = {}  # key -> (call, output tree), or None: not storable
 
-    @functools.wraps(fun)
-    def call(*args, **kwargs):
+    def stored_program(args, kwargs):
+        """``(program of flat leaves, output tree, leaves, treedef)``, or ``None`` where the
+        call is ``jax.jit``'s (``kwargs`` without the static arguments: ``static``)."""
         directory = _STORE["directory"]
-        static = {k: kwargs.pop(k) for k in static_argnames if k in kwargs}
-        leaves, treedef = jax.tree_util.tree_flatten((args, kwargs))
+        static = {k: kwargs[k] for k in static_argnames if k in kwargs}
+        dynamic = {k: v for k, v in kwargs.items() if k not in static}
+        leaves, treedef = jax.tree_util.tree_flatten((args, dynamic))
         if directory is None or not all(isinstance(x, (jax.Array, np.ndarray))
                                         and not isinstance(x, jax.core.Tracer)
                                         for x in leaves):
-            return jitted(*args, **kwargs, **static)
+            return None
         try:
             key = _entry_key(fun, static, treedef, leaves)
         except NotCanonical:
-            return jitted(*args, **kwargs, **static)
+            return None
         if key not in programs:
             path = Path(directory) / f"{key}{_SUFFIX}"
-
             out_tree = {}
 
             def run(*flat_leaves):
@@ -255,10 +260,32 @@ def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable
 
             programs[key] = ((path.exists() and _load(path))
                              or _export(jax.jit(run), out_tree, leaves, path))
-        if programs[key] is None:
-            return jitted(*args, **kwargs, **static)
-        program, out_tree = programs[key]
+        return None if programs[key] is None else (*programs[key], leaves, treedef)
+
+    @functools.wraps(fun)
+    def call(*args, **kwargs):
+        found = stored_program(args, kwargs)
+        if found is None:
+            return jitted(*args, **kwargs)
+        program, out_tree, leaves, _ = found
         return jax.tree_util.tree_unflatten(out_tree, program(*leaves))
 
+    def compile_ahead(*args, **kwargs):
+        found = stored_program(args, kwargs)
+        if found is None:
+            return jitted.lower(*args, **kwargs).compile()
+        program, out_tree, leaves, treedef = found
+        compiled = program.lower(*leaves).compile()
+
+        def run_compiled(*a, **k):
+            dynamic = {name: v for name, v in k.items() if name not in static_argnames}
+            flat, tree = jax.tree_util.tree_flatten((a, dynamic))
+            if tree != treedef:
+                raise TypeError(f"{fun.__name__}: compiled for inputs {treedef}, got {tree}")
+            return jax.tree_util.tree_unflatten(out_tree, compiled(*flat))
+
+        return run_compiled
+
     call.jitted = jitted  # the plain ``jax.jit`` function (tests, benchmarks)
+    call.compile = compile_ahead
     return call

@@ -191,3 +191,29 @@ def test_a_second_process_loads_it_and_an_edited_module_is_traced_again(tmp_path
     assert edited["traced"] == 1
     np.testing.assert_allclose(edited["out"][0], np.linspace(0.0, 1.0, 5) * 3.0 + 2.0)
     assert len(entries(tmp_path / "traced")) == 2
+
+
+@pytest.mark.parametrize("store_on", [True, False])
+def test_compiled_ahead_of_time_runs_the_same_program(store_on, tmp_path, monkeypatch):
+    """``stored_jit(...).compile(...)`` (the command line times compilation apart): stored
+    or not, a callable of the same arguments with ``jax.jit``'s results; with the store on,
+    a new wrapper compiles the loaded program without tracing."""
+    monkeypatch.delenv("JAXTUBE_NO_COMPILATION_CACHE", raising=False)
+    if store_on:
+        jt.enable_traced_program_store(tmp_path)
+    try:
+        x, y = jnp.arange(3.0), jnp.ones(3)
+        TRACES.clear()
+        compiled = jt.stored_jit(model, static_argnames=("settings",)).compile(
+            x, y, settings=Settings(4.0))
+        again = jt.stored_jit(model, static_argnames=("settings",)).compile(
+            x, y, settings=Settings(4.0))
+        if store_on:  # the second loaded (without the store, JAX's own cache serves it)
+            assert len(TRACES) == 1
+        for program in (compiled, again):
+            out = program(x + 1.0, y)
+            np.testing.assert_array_equal(out["value"], (x + 1.0) * 4.0 + jnp.sin(y))
+        assert len(entries(tmp_path)) == (1 if store_on else 0)
+    finally:
+        jt.disable_traced_program_store()
+        TRACES.clear()
