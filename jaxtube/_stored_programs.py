@@ -9,6 +9,9 @@ quarter of a second run. :func:`stored_jit` keeps each traced program as a seria
 ``jax.export.Exported`` (StableHLO) under ``$XDG_CACHE_HOME/jaxtube/traced``; a later process
 with the same code, the same static arguments and the same input shapes loads it instead of
 tracing (a few milliseconds) and compiles it, from the compilation cache when that is on.
+The command line stores the fit's program (``fit``, ``diagnose``, ``demo``: a second demo
+21.2 s against 27.6 s) and ``simulate``'s load path (3.9 s against 5.3 s for the bundled
+cantilever).
 
 **What keys an entry** (sha256 of all of it):
 
