@@ -22,6 +22,7 @@ from fitting._bench import effects as fx
 from fitting._calibrate import problem as _calibrate
 from fitting._calibrate.parameters_file import without_effects_words
 from fitting._cli import main
+from jaxtube import _stored_programs as jt_stored
 
 DATA = Path(__file__).parent / "data" / "calibration_spline.csv"
 ROOT = Path(__file__).resolve().parents[1]
@@ -269,6 +270,11 @@ def test_the_fit_program_loaded_from_the_store_gives_the_same_residuals_and_jaco
     jt.enable_traced_program_store(tmp_path)
     try:
         exported = _calibrate._residuals_and_jacobian(*arguments, **problem.static())
+
+        def no_export(*_):
+            raise AssertionError("the stored program was traced again, not loaded")
+
+        monkeypatch.setattr(jt_stored, "_export", no_export)
         loaded = jt.stored_jit(_calibrate._residuals_and_jacobian.__wrapped__,
                                static_argnames=("rig", "scaling", "effects"))(
             *arguments, **problem.static())

@@ -3,6 +3,7 @@ a later process loads them without tracing and gets the same results; anything w
 cannot be stored, or whose key is not the same in every process, runs as ``jax.jit``."""
 
 import dataclasses
+import functools
 import json
 import os
 import subprocess
@@ -217,3 +218,99 @@ def test_compiled_ahead_of_time_runs_the_same_program(store_on, tmp_path, monkey
     finally:
         jt.disable_traced_program_store()
         TRACES.clear()
+
+
+def failing(x, *, settings):
+    TRACES.append(settings)
+    raise ValueError("the model's own error")
+
+
+@dataclasses.dataclass(frozen=True)
+class Hidden:
+    scale: float = dataclasses.field(repr=False)  # printed alike for every scale
+
+
+@dataclasses.dataclass(frozen=True)
+class Holder:
+    x: object
+    hidden: Hidden  # the node's static metadata
+
+
+jax.tree_util.register_pytree_node(
+    Holder, lambda h: ((h.x,), h.hidden), lambda hidden, children: Holder(children[0], hidden))
+
+
+def with_static_input(holder):
+    return holder.x * holder.hidden.scale
+
+
+def _times(k):
+    def decorate(f):
+        @functools.wraps(f)
+        def wrapper(v):
+            return f(v) * k
+        return wrapper
+    return decorate
+
+
+@_times(2.0)
+def doubled(v):
+    return v  # a module-level closure: its name alone does not say what it computes
+
+
+def test_what_is_never_stored_runs_as_jit(store):
+    """Closures and partials (their values are not in the key), a module edited since it
+    was read, ``jax.disable_jit``: each runs as ``jax.jit``, right, and nothing is stored."""
+    x, y = jnp.arange(3.0), jnp.zeros(3)
+
+    def make(k):
+        def scaled(v):
+            return v * k
+        return jt.stored_jit(scaled)
+
+    np.testing.assert_allclose(make(2.0)(x), 2.0 * x)
+    np.testing.assert_allclose(make(3.0)(x), 3.0 * x)
+    np.testing.assert_allclose(jt.stored_jit(doubled)(x), 2.0 * x)
+    partial = jt.stored_jit(functools.partial(model, settings=Settings(5.0)))
+    np.testing.assert_allclose(partial(x, y)["value"], 5.0 * x)
+    with jax.disable_jit():
+        plain = jt.stored_jit(model, static_argnames=("settings",))
+        np.testing.assert_allclose(plain(x, y, settings=Settings(6.0))["value"], 6.0 * x)
+    assert entries(store) == []
+    # A module whose file changed after this process read it: no longer stored.
+    module_dir = store.parent / "edited"
+    module_dir.mkdir()
+    (module_dir / "edited_model.py").write_text("def f(x):\n    return x * 1.0\n")
+    sys.path.insert(0, str(module_dir))
+    try:
+        edited = __import__("edited_model")
+        jt.stored_jit(edited.f)(x)
+        assert len(entries(store)) == 1
+        (module_dir / "edited_model.py").write_text("def f(x):\n    return x * 2.0  # new\n")
+        np.testing.assert_allclose(jt.stored_jit(edited.f)(jnp.arange(4.0)), jnp.arange(4.0))
+        assert len(entries(store)) == 1
+    finally:
+        sys.path.remove(str(module_dir))
+        sys.modules.pop("edited_model", None)
+
+
+def test_static_fields_of_inputs_key_entries_and_errors_propagate_once(store):
+    """Input trees differing only in a static field (printed alike) get their own entries;
+    the model's own error while tracing propagates, traced once; ``compile()`` refuses the
+    static arguments at the call."""
+    x = jnp.arange(3.0)
+    wrapped = jt.stored_jit(with_static_input)
+    np.testing.assert_allclose(wrapped(Holder(x, Hidden(2.0))), 2.0 * x)
+    np.testing.assert_allclose(wrapped(Holder(x, Hidden(3.0))), 3.0 * x)
+    assert len(entries(store)) == 2
+    TRACES.clear()
+    with pytest.raises(ValueError, match="the model's own error"):
+        jt.stored_jit(failing, static_argnames=("settings",))(x, settings=Settings(1.0))
+    assert len(TRACES) == 1
+    TRACES.clear()
+    compiled = jt.stored_jit(model, static_argnames=("settings",)).compile(
+        x, x, settings=Settings(2.0))
+    with pytest.raises(TypeError, match="static"):
+        compiled(x, x, settings=Settings(3.0))
+    with pytest.raises(TypeError, match="compiled for inputs"):
+        compiled(x, (x,))
