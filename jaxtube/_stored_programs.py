@@ -10,8 +10,8 @@ quarter of a second run. :func:`stored_jit` keeps each traced program as a seria
 with the same code, the same static arguments and the same input shapes loads it instead of
 tracing (a few milliseconds) and compiles it, from the compilation cache when that is on.
 The command line stores the fit's program (``fit``, ``diagnose``, ``demo``: a second demo
-21.2 s against 27.6 s) and ``simulate``'s load path (3.9 s against 5.3 s for the bundled
-cantilever).
+21.2-22.5 s against 27.6 s) and ``simulate``'s load path (3.8-4.1 s against 5.3 s for the
+bundled cantilever).
 
 **What keys an entry** (sha256 of all of it):
 
@@ -29,8 +29,9 @@ cantilever).
   read at first use in the process. An edit to the model, the workbench or a user's own
   effect gives a new key in the next process; a file edited after the process read it
   stops the storing of its package for the rest of the process (what runs may no longer be
-  what the file says). A class or function without a source file (``__main__``, a notebook
-  cell) is not stored;
+  what the file says; programs already in use in the process stay, as in ``jax.jit``'s
+  cache). The key is computed once per input signature in a process. A class or function
+  without a source file (``__main__``, a notebook cell) is not stored;
 - the versions of JAX, jaxlib, equinox and NumPy, the backend and the JAX settings that
   change a trace (``_SETTINGS``).
 
@@ -315,11 +316,14 @@ def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable
     arguments compiled ahead of time (``jax.jit(...).lower(...).compile()``), a callable
     taking the same arguments (to time compilation apart from the run)."""
     jitted = jax.jit(fun, static_argnames=static_argnames)
-    programs: dict = {}  # key -> (call of the flat leaves, output tree)
+    # In this process, as jax.jit's own cache: (store, input tree, shapes, static arguments)
+    # -> (call of the flat leaves, output tree), or None (jax.jit's call). The entry's key
+    # (sources read, static arguments made canonical) is computed on a miss only.
+    programs: dict = {}
 
     def stored_program(args, kwargs):
         """``(program of flat leaves, output tree, leaves, treedef)``, or ``None`` where the
-        call is ``jax.jit``'s (``kwargs`` without the static arguments: ``static``)."""
+        call is ``jax.jit``'s."""
         directory = _STORE["directory"]
         static = {k: kwargs[k] for k in static_argnames if k in kwargs}
         dynamic = {k: v for k, v in kwargs.items() if k not in static}
@@ -328,11 +332,15 @@ def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable
                 or not all(isinstance(x, (jax.Array, np.ndarray))
                            and not isinstance(x, jax.core.Tracer) for x in leaves)):
             return None
-        try:
-            key = _entry_key(fun, static, treedef, leaves)
-        except NotCanonical:
-            return None
-        if key not in programs:
+        signature = (directory, treedef, tuple(sorted(static.items())),
+                     tuple((np.shape(x), x.dtype, bool(getattr(x, "weak_type", False)))
+                           for x in leaves))
+        if signature not in programs:
+            try:
+                key = _entry_key(fun, static, treedef, leaves)
+            except NotCanonical:
+                programs[signature] = None
+                return None
             path = Path(directory) / f"{key}{_SUFFIX}"
             out_tree = {}
 
@@ -342,8 +350,9 @@ def stored_jit(fun: Callable, static_argnames: tuple[str, ...] = ()) -> Callable
                     fun(*a, **k, **static))
                 return leaves_out
 
-            programs[key] = _load(path) or _export(jax.jit(run), out_tree, leaves, path)
-        return (*programs[key], leaves, treedef)
+            programs[signature] = _load(path) or _export(jax.jit(run), out_tree, leaves, path)
+        found = programs[signature]
+        return None if found is None else (*found, leaves, treedef)
 
     @functools.wraps(fun)
     def call(*args, **kwargs):
