@@ -49,15 +49,19 @@ def shape_figure(positions, score, title, path) -> None:
     plt.close(fig)
 
 
-def rms_figure(rows, peers, path) -> None:
-    """Bars of RMS [mm] per case: undeformed, Billow x 0.36, kite_fem, jaxtube."""
+def rms_figure(rows, peers, path, fitted_cases=(1,)) -> None:
+    """Bars of RMS [mm] per case: undeformed, Billow x 0.36, kite_fem, jaxtube (its legend
+    naming the cases the calibration was fitted to, ``fitted_cases``; the others are
+    predicted)."""
     cases = list(rows)
     width = 0.2
     fig, ax = plt.subplots(figsize=(8, 4))
     series = [("undeformed", [rows[c]["undeformed_rms_mm"] for c in cases], "0.7"),
               ("Billow, law x 0.36 (published)", [peers[c][1] for c in cases], "tab:orange"),
               ("kite_fem (this version)", [peers[c][2] for c in cases], "tab:green"),
-              ("jaxtube (case 1 calibrated, 2-5 predicted)", [rows[c]["rms_mm"] for c in cases],
+              (f"jaxtube (fitted to case {' and '.join(map(str, fitted_cases))}, "
+               f"{', '.join(str(c) for c in cases if c not in fitted_cases)} predicted)",
+               [rows[c]["rms_mm"] for c in cases],
                "tab:blue")]
     for k, (label, values, colour) in enumerate(series):
         ax.bar(np.arange(len(cases)) + (k - 1.5) * width, values, width, label=label,

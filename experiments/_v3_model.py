@@ -1,6 +1,7 @@
 """The TU Delft V3 hanging test's model and cases: the import, the two compiled hang programs
-(gravity and tip loads; centre loads by a drive to the dead load), one case's solve, the
-measured lengths and the calibration file. ``v3_hanging_test.py`` (the command line:
+(gravity and tip loads; centre loads by a drive to the dead load), the trailing edge's
+factor, one case's solve, the measured lengths, the calibration's one-number search and its
+file. ``v3_hanging_test.py`` (the command line:
 calibrate, predict, score) and ``v3_missing_effect.py`` build on it; its docstring says what is
 fitted and why.
 
@@ -12,6 +13,7 @@ PJ Haanen)").
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import sys
 import time
@@ -130,6 +132,37 @@ def with_bending_scale(params, bending_scale):
     return eqx.tree_at(lambda p: p.bending_laws, params, laws)
 
 
+# The trailing edge: the 28 canopy springs between neighbouring trailing-edge nodes (kite_fem's
+# even wing nodes 2, 4, ..., 58, tip to tip). Their rest lengths are the model file's straight
+# distances; in the tip cases the measured trailing edge is shorter (README, "The tip cases").
+# A factor on them (TRAILING_EDGE_BOUNDS for its search) is the calibration's second number.
+TRAILING_EDGE_NODES = tuple(range(2, 59, 2))
+TRAILING_EDGE_BOUNDS = (0.8, 1.05)
+
+
+def trailing_edge_rows(model) -> np.ndarray:
+    """Rows of ``model.spring_matrix`` (= lines, same order) joining neighbouring
+    trailing-edge nodes (``TRAILING_EDGE_NODES``); ``[28]`` int for the V3 kite."""
+    nodes = np.sort(np.asarray(model.spring_nodes, dtype=np.int64), axis=1)
+    on_edge = np.isin(nodes, TRAILING_EDGE_NODES).all(axis=1)
+    return np.flatnonzero(on_edge & (nodes[:, 1] - nodes[:, 0] == 2))
+
+
+def with_trailing_edge_factor(imported, factor):
+    """``imported`` (a :class:`jaxtube.KiteFemImport`) with the trailing-edge springs' rest
+    lengths times ``factor`` (the other lines, the tubes and the geometry as they are; a new
+    parameter value, not a new structure: the compiled programs serve every factor)."""
+    factor = float(factor)
+    if not factor > 0.0:
+        raise ValueError(f"trailing_edge_factor: expected a positive number, got {factor!r}")
+    if factor == 1.0:
+        return imported
+    elements = imported.params.elements
+    rest = elements.line_rest_length.at[trailing_edge_rows(imported.model)].multiply(factor)
+    params = eqx.tree_at(lambda p: p.elements.line_rest_length, imported.params, rest)
+    return dataclasses.replace(imported, params=params)
+
+
 def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0, law_form="curvature"):
     """The imported V3 kite with one case's pressure and loads (bending law: Breukels 2011
     with a factor of ``law_form`` (``LAW_FORMS``), set by :func:`with_bending_scale`;
@@ -245,7 +278,7 @@ def case_equilibrium(result):
 
 
 def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False,
-               law_form="curvature"):
+               law_form="curvature", trailing_edge_factor=1.0):
     """Solve one case (a case solved before in this process is not solved again); with
     ``repeat`` once more, timed again (each program is compiled ahead of its first solve, so
     every timed solve is warm). Returns a dict: ``imported``, ``solution`` (the case's
@@ -255,14 +288,15 @@ def solve_case(pressure_bar, centre_load_kg, tip_load_kg, scale, repeat=False,
     ``newton_iterations`` (per gravity stage, then for a centre load the dead-load solve),
     ``drive`` (centre loads: the drive's steps, ``None`` otherwise), ``hang`` (in words),
     ``seconds`` (the timed solve), ``compile_seconds`` (its program's). ``law_form``: the
-    calibration's (``LAW_FORMS``)."""
+    calibration's (``LAW_FORMS``); ``trailing_edge_factor``: the trailing-edge springs' rest
+    lengths times it (:func:`with_trailing_edge_factor`)."""
     key = (float(pressure_bar), float(centre_load_kg), float(tip_load_kg), float(scale),
-           law_form)
+           law_form, float(trailing_edge_factor))
     kind = V3Program.kind(centre_load_kg)
     load_factors = hang_stages(tip_load_kg)
     cached = _SOLVED.get(key)  # the same case solved before in this process (tests, score+predict)
-    imported = (cached[0] if cached else
-                import_case(pressure_bar, centre_load_kg, tip_load_kg, law_form))
+    imported = (cached[0] if cached else with_trailing_edge_factor(
+        import_case(pressure_bar, centre_load_kg, tip_load_kg, law_form), trailing_edge_factor))
     blends = hang_blends(tip_load_kg, _model_blend(imported))
 
     def timed_solve():
@@ -333,11 +367,44 @@ def read_measured_lengths() -> dict[int, np.ndarray]:
     return out
 
 
+def search_one_number(name, rms_of, bounds, xatol, max_evaluations, history):
+    """Bounded Brent search (``scipy.optimize.minimize_scalar``) of ``rms_of(x)`` (a case's
+    re-registered RMS [mm]) for ``x`` in ``bounds``, then the RMS on both sides at
+    ``x +- 4 xatol``. Returns a dict: ``x``, ``rms_mm``, ``rms_mm_minus_plus``, ``converged``
+    (Brent's own test, not at a bound, and neither side lower), ``message``,
+    ``evaluations``. Every evaluation is appended to ``history``."""
+    from scipy.optimize import minimize_scalar
+
+    def objective(x):
+        rms, outcome = rms_of(float(x))
+        history.append({"number": name, "value": float(x), "rms_mm": rms,
+                        "converged": outcome["converged"],
+                        "newton_iterations": outcome["newton_iterations"]})
+        print(f"{name} = {x:.5f}: RMS {'not converged' if rms is None else f'{rms:.2f} mm'}",
+              file=sys.stderr, flush=True)
+        if rms is None:
+            raise RuntimeError(f"the hang did not converge at {name} = {x}")
+        return rms
+
+    found = minimize_scalar(objective, bounds=bounds, method="bounded",
+                            options={"xatol": xatol, "maxiter": max_evaluations})
+    x = float(found.x)
+    at_bound = min(abs(x - bounds[0]), abs(x - bounds[1])) < 2 * xatol
+    h = 4 * xatol
+    minus, plus = float(objective(x - h)), float(objective(x + h))
+    bracketed = minus >= found.fun and plus >= found.fun
+    return {"x": x, "rms_mm": float(found.fun), "rms_mm_minus_plus": [minus, plus], "h": h,
+            "converged": bool(found.success and not at_bound and bracketed),
+            "message": str(found.message), "evaluations": int(found.nfev)}
+
+
 def load_calibration(path=CALIBRATION) -> dict:
     try:
         calibration = json.loads(Path(path).read_text())
         float(calibration["bending_scale"])
         calibration.setdefault("law_form", "moment")  # files written before the form existed
+        calibration.setdefault("trailing_edge_factor", 1.0)  # ... and before the trailing edge
+        float(calibration["trailing_edge_factor"])
         if calibration["law_form"] not in LAW_FORMS:
             raise ValueError(f"'law_form' {calibration['law_form']!r} is not one of "
                              f"{LAW_FORMS}")
@@ -346,7 +413,8 @@ def load_calibration(path=CALIBRATION) -> dict:
                          "calibrate` first") from None
     except (KeyError, ValueError, TypeError) as error:
         raise SystemExit(f"error: {path}: expected a JSON object with a number "
-                         f"'bending_scale' and a 'law_form' ({error})") from None
+                         "'bending_scale', a 'law_form' and (optional) a number "
+                         f"'trailing_edge_factor' ({error})") from None
     return calibration
 
 

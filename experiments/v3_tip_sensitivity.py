@@ -15,6 +15,10 @@ committed calibration's ``s``:
 - ``torsion x t``: every tube's torsion law (Breukels 2011) times ``t`` (its moments, a
   :class:`jaxtube.ScaledLaw`);
 - ``lines x k``: every line's stiffness times ``k`` (canopy springs and bridle lines alike);
+- ``trailing edge x f``: the rest lengths of the 28 trailing-edge springs (kite_fem nodes
+  2-4-...-58, ``_v3_model.trailing_edge_rows``) times ``f``. Measured in cases 4 and 5, the
+  distances between the struts' trailing-edge ends are 4-10 % shorter than the model file's
+  (1.19-1.27 m against 1.31-1.33 m), where the taut model trailing edge can only be longer;
 - ``torsion shares s``: the torsion law's stiffness times the same ``s`` as bending, its
   moments kept (:class:`jaxtube.CurvatureScaledLaw` on both laws): the reading that the
   kite's tubes are softer than Breukels' because their fabric is (the bending and torsion
@@ -22,7 +26,12 @@ committed calibration's ``s``:
   is. ``s`` is refitted to case 1 alone (bounded Brent on ``log s``, as the calibration), and
   every case is then predicted.
 
-**What this looks at.** The first two are scanned on cases 1, 4 and 5 themselves: they say
+The trailing edge is the committed calibration's second number, fitted to case 4
+(``v3_hanging_test.py calibrate``); here it is also **fitted to case 5 alone and case 4
+predicted**, the cross-check that a single length factor serves both tip loads.
+
+**What this looks at.** Every scan starts from the model file's trailing edge (``f = 1``)
+and the committed ``s``. The first three are scanned on cases 1, 4 and 5 themselves: they say
 how much each number can move the tip cases, not a prediction. The third is fitted to case 1
 only, but it was tried because the scan showed that softer torsion helps the tips. Nothing
 here changes the committed calibration (README, "The TU Delft V3 hanging test").
@@ -56,8 +65,12 @@ from _v3_kite_fem import v3_tube_surfaces  # noqa: E402
 import fitting  # noqa: E402
 import jaxtube as jt  # noqa: E402
 
-SCANS = (("torsion x t", (1.0, 0.1, 0.3, 3.0)), ("lines x k", (0.3, 3.0, 10.0, 30.0)))
+SCANS = (("torsion x t", (1.0, 0.1, 0.3, 3.0)), ("lines x k", (0.3, 3.0, 10.0, 30.0)),
+         ("trailing edge x f", (0.8, 0.85, 0.9, 0.92, 0.95)))
 CASES_SCANNED = (1, 4, 5)
+MEASURED_LENGTHS = v3.read_measured_lengths()
+_MODEL = jt.read_kite_fem(v3.MODEL)
+TE_MASK = jnp.zeros(len(_MODEL.spring_nodes)).at[v3.trailing_edge_rows(_MODEL)].set(1.0)
 
 
 def import_case(case: int, torsion_form: str):
@@ -74,15 +87,18 @@ def import_case(case: int, torsion_form: str):
 
 
 def with_factors(params, factors):
-    """``factors = (s, t, k)``: every bending law's factor ``s``, every torsion law's ``t``,
-    every line's stiffness x ``k`` (traced)."""
-    bending, torsion, lines = factors[0], factors[1], factors[2]
+    """``factors = (s, t, k, f)``: every bending law's factor ``s``, every torsion law's
+    ``t``, every line's stiffness x ``k``, the trailing-edge springs' rest lengths x ``f``
+    (traced; ``TE_MASK``: 1 on those springs)."""
+    bending, torsion, lines, edge = factors[0], factors[1], factors[2], factors[3]
     laws = tuple(eqx.tree_at(lambda law: law.factor, law, bending)
                  for law in params.bending_laws)
     twist = tuple(eqx.tree_at(lambda law: law.factor, law, torsion)
                   for law in params.torsion_laws)
-    elements = eqx.tree_at(lambda e: e.line_stiffness, params.elements,
-                           params.elements.line_stiffness * lines)
+    elements = eqx.tree_at(
+        lambda e: (e.line_stiffness, e.line_rest_length), params.elements,
+        (params.elements.line_stiffness * lines,
+         params.elements.line_rest_length * (1.0 + TE_MASK * (edge - 1.0))))
     return eqx.tree_at(lambda p: (p.bending_laws, p.torsion_laws, p.elements), params,
                        (laws, twist, elements))
 
@@ -126,7 +142,8 @@ class Programs:
 
 
 def evaluate(case: int, torsion_form: str, factors) -> dict:
-    """Hang ``case`` at ``factors`` ``(s, t, k)`` and score it by the peers' metric."""
+    """Hang ``case`` at ``factors`` ``(s, t, k, f)`` and score it by the peers' metric,
+    with the 12 lengths' mean relative error."""
     imported, result, seconds = Programs.solve(case, torsion_form, factors)
     solution, _, _ = v3.case_equilibrium(result)
     row = {"case": case, "torsion_form": torsion_form,
@@ -135,9 +152,42 @@ def evaluate(case: int, torsion_form: str, factors) -> dict:
     if row["converged"]:
         positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
         found = fitting.score_shape(v3_tube_surfaces(positions), v3.markers_of(case))
+        lengths = v3.measured_lengths(positions)
+        measured = MEASURED_LENGTHS[case]
         row.update(rms_mm=round(found.rms_mm, 1),
-                   group_rms_mm={k: round(v, 1) for k, v in found.group_rms_mm.items()})
+                   group_rms_mm={k: round(v, 1) for k, v in found.group_rms_mm.items()},
+                   length_mean_relative_error=round(float(np.mean(
+                       np.abs(lengths - measured) / measured)), 4),
+                   lengths_m=dict(zip(v3.LENGTH_NAMES, np.round(lengths, 4).tolist())))
     return row
+
+
+def fit_trailing_edge_to_case5(s: float, lines: list[str]) -> dict:
+    """The trailing-edge factor fitted to case 5 alone (bounded Brent on ``f``, the committed
+    ``s``), then case 4 predicted with it: the cross-check of the calibration's fit to
+    case 4."""
+    history = []
+
+    def objective(f):
+        row = evaluate(5, "moment", (s, 1.0, 1.0, float(f)))
+        history.append(row)
+        return row["rms_mm"] if row["converged"] else 1e6
+
+    found = minimize_scalar(objective, bounds=v3.TRAILING_EDGE_BOUNDS, method="bounded",
+                            options={"xatol": 2e-3})
+    f = float(found.x)
+    h = 8e-3
+    bracketed = objective(f - h) >= found.fun <= objective(f + h)
+    rows = [evaluate(case, "moment", (s, 1.0, 1.0, f)) for case in range(1, 6)]
+    lines.append(f"trailing edge fitted to case 5 alone: f = {f:.4f} ({found.fun:.1f} mm, "
+                 f"{len(history)} evaluations, minimum bracketed: {bool(bracketed)}); then:")
+    for row in rows:
+        said = (f"{row['rms_mm']:.1f} mm, lengths "
+                f"{100 * row['length_mean_relative_error']:.1f} %" if row["converged"]
+                else "NOT CONVERGED")
+        lines.append(f"  case {row['case']}: {said}")
+    return {"f": f, "case5_rms_mm": float(found.fun), "bracketed": bool(bracketed),
+            "cases": rows, "history": history}
 
 
 def refit_shared_torsion(scale0: float, lines: list[str]) -> dict:
@@ -146,7 +196,7 @@ def refit_shared_torsion(scale0: float, lines: list[str]) -> dict:
 
     def objective(log_s):
         s = float(np.exp(log_s))
-        row = evaluate(1, "curvature", (s, s, 1.0))
+        row = evaluate(1, "curvature", (s, s, 1.0, 1.0))
         history.append(row)
         return row["rms_mm"] if row["converged"] else 1e6
 
@@ -155,7 +205,7 @@ def refit_shared_torsion(scale0: float, lines: list[str]) -> dict:
     s = float(np.exp(found.x))
     h = 0.04
     bracketed = objective(found.x - h) >= found.fun <= objective(found.x + h)
-    rows = [evaluate(case, "curvature", (s, s, 1.0)) for case in range(1, 6)]
+    rows = [evaluate(case, "curvature", (s, s, 1.0, 1.0)) for case in range(1, 6)]
     lines.append(f"torsion shares s: s = {s:.4f} refitted to case 1 ({found.fun:.1f} mm, "
                  f"{len(history)} evaluations, minimum bracketed: {bool(bracketed)}; the "
                  f"committed s = {scale0:.4f} with torsion unscaled)")
@@ -172,28 +222,34 @@ def main() -> int:
         raise SystemExit("expected the committed calibration's curvature form")
     s = float(calibration["bending_scale"])
     lines = [f"V3 tip-load sensitivity (experiments/v3_tip_sensitivity.py): bending stiffness "
-             f"x {s:.4f} (committed, case 1), one number changed at a time; RMS [mm] by the "
-             "peers' metric", "scan (looked at cases 1, 4, 5 themselves: sensitivities, "
-             "not predictions):"]
+             f"x {s:.4f} (committed, case 1), the model file's trailing edge (f = 1), one "
+             "number changed at a time; RMS [mm] by the peers' metric",
+             "scan (looked at cases 1, 4, 5 themselves: sensitivities, not predictions):"]
     scans = []
     for name, values in SCANS:
         for value in values:
-            factors = (s, value, 1.0) if name.startswith("torsion") else (s, 1.0, value)
+            factors = {"torsion": (s, value, 1.0, 1.0), "lines": (s, 1.0, value, 1.0),
+                       "trailing": (s, 1.0, 1.0, value)}[name.split()[0]]
             rows = [evaluate(case, "moment", factors) for case in CASES_SCANNED]
             scans.append({"candidate": name, "value": value, "cases": rows})
             said = ", ".join(f"case {r['case']} "
-                             + (f"{r['rms_mm']:.1f}" if r["converged"] else "NOT CONVERGED")
+                             + (f"{r['rms_mm']:.1f} (lengths "
+                                f"{100 * r['length_mean_relative_error']:.1f} %)"
+                                if r["converged"] else "NOT CONVERGED")
                              for r in rows)
             lines.append(f"  {name.split()[0]} x {value:g}: {said}")
             print(lines[-1], flush=True)
     shared = refit_shared_torsion(s, lines)
+    print("\n".join(lines[-6:]), flush=True)
+    edge = fit_trailing_edge_to_case5(s, lines)
     print("\n".join(lines[-6:]), flush=True)
     lines.append(f"compile seconds: {Programs.compile_seconds}; load average "
                  f"{' '.join(f'{x:.1f}' for x in os.getloadavg())} on {os.cpu_count()} cores; "
                  f"jax {jax.__version__}")
     (v3.RESULTS / "v3_tip_sensitivity.txt").write_text("\n".join(lines) + "\n")
     (v3.RESULTS / "v3_tip_sensitivity.json").write_text(json.dumps(
-        {"bending_scale": s, "scans": scans, "torsion_shares_s": shared}, indent=1) + "\n")
+        {"bending_scale": s, "scans": scans, "torsion_shares_s": shared,
+         "trailing_edge_fitted_to_case5": edge}, indent=1) + "\n")
     print(f"wrote {v3.RESULTS / 'v3_tip_sensitivity.txt'} and .json")
     return 0
 

@@ -48,7 +48,32 @@ def case1(script):
     calibration = json.loads(script.CALIBRATION.read_text())
     pressure, centre, tip, _ = script.CASES[1]
     return script.solve_case(pressure, centre, tip, calibration["bending_scale"], repeat=False,
-                             law_form=calibration.get("law_form", "moment"))
+                             law_form=calibration.get("law_form", "moment"),
+                             trailing_edge_factor=calibration.get("trailing_edge_factor", 1.0))
+
+
+def test_trailing_edge_factor_scales_the_trailing_edge_springs_alone(script):
+    """The calibration's second number acts on the 28 springs that join neighbouring
+    trailing-edge nodes (kite_fem's even wing nodes 2, 4, ..., 58), tip to tip, and on no
+    other line: their rest lengths (the model file's straight distances) times the factor."""
+    model = importlib.import_module("_v3_model")  # on the path since the script's fixture
+    imported = model.import_case(0.15)
+    rows = model.trailing_edge_rows(imported.model)
+    nodes = np.sort(imported.model.spring_nodes[rows], axis=1)
+    assert len(rows) == 28
+    assert sorted(map(tuple, nodes.tolist())) == [(n, n + 2) for n in range(2, 58, 2)]
+    position = imported.model.node_position
+    before = np.asarray(imported.params.elements.line_rest_length)
+    np.testing.assert_allclose(before[rows], np.linalg.norm(
+        position[nodes[:, 0]] - position[nodes[:, 1]], axis=1), rtol=1e-6)
+    after = np.asarray(model.with_trailing_edge_factor(imported, 0.9)
+                       .params.elements.line_rest_length)
+    others = np.setdiff1d(np.arange(before.size), rows)
+    np.testing.assert_array_equal(after[others], before[others])
+    np.testing.assert_allclose(after[rows], 0.9 * before[rows], rtol=1e-15)
+    assert model.with_trailing_edge_factor(imported, 1.0) is imported
+    with pytest.raises(ValueError, match="trailing_edge_factor"):
+        model.with_trailing_edge_factor(imported, 0.0)
 
 
 def test_measured_length_definitions_reproduce_kite_fem(script):
