@@ -41,7 +41,8 @@ Subcommands::
         --tip-load-kg T --out DIR
     python experiments/v3_hanging_test.py score [--quick] [--out DIR] [--no-figures]
 
-``calibrate`` writes ``experiments/results/v3_calibration.json`` (``converged`` true only
+``calibrate`` writes ``experiments/results/v3_calibration.json`` (or ``--calibration PATH``,
+which ``predict`` and ``score`` also take; ``converged`` true only
 when the search met its tolerance inside the bounds and the minimum is bracketed);
 ``predict`` uses it and writes ``DIR/positions.csv`` (``node,x_m,y_m,z_m``, every node of
 ``initial.npz`` in its numbering and frame) and ``DIR/summary.json`` (``converged``;
@@ -233,20 +234,21 @@ def calibrate(args) -> int:
             "metric's local radius is per kite_fem beam (stepwise at nodes), so the RMS jumps "
             "where a marker's nearest axis segment changes, and an optimal registration can "
             "sit on such a jump: the two agree only away from one (README, V3 section)")
-    CALIBRATION.parent.mkdir(exist_ok=True)
-    CALIBRATION.write_text(json.dumps(record, indent=2) + "\n")
+    path = Path(args.calibration)
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(json.dumps(record, indent=2) + "\n")
     print(f"bending_scale {scale:.4f}: case 1 RMS {record['rms_mm']:.1f} mm; "
           f"trailing_edge_factor {factor:.4f}"
           + (f": case {te_case} RMS {record['trailing_edge_case_rms_mm']:.1f} mm" if te_case
              else " (not fitted)")
-          + f"; converged {converged} in {len(rounds)} rounds; wrote {CALIBRATION}")
+          + f"; converged {converged} in {len(rounds)} rounds; wrote {path}")
     return 0 if converged else 1
 
 
 # ---------------------------------------------------------------- predict
 
 def predict(args) -> int:
-    calibration = load_calibration()
+    calibration = load_calibration(args.calibration)
     scale = float(calibration["bending_scale"])
     if not args.pressure_bar > 0:
         print(f"error: --pressure-bar must be > 0, got {args.pressure_bar}", file=sys.stderr)
@@ -269,7 +271,7 @@ def predict(args) -> int:
                "pressure_bar": args.pressure_bar, "centre_load_kg": args.centre_load_kg,
                "tip_load_kg": args.tip_load_kg, "bending_scale": scale,
                "law_form": calibration["law_form"], "trailing_edge_factor": factor,
-               "calibration": str(CALIBRATION.relative_to(HERE.parent)),
+               "calibration": os.path.relpath(args.calibration, HERE.parent),
                "load_average": os.getloadavg()}
     if outcome["converged"]:
         jt.write_positions_csv(out / "positions.csv.tmp", outcome["positions"])
@@ -293,7 +295,7 @@ def predict(args) -> int:
 def score(args) -> int:
     from _v3_figures import law_figure, rms_figure, shape_figure
 
-    calibration = load_calibration()
+    calibration = load_calibration(args.calibration)
     scale = float(calibration["bending_scale"])
     cases = (1,) if args.quick else tuple(CASES) if args.cases is None else tuple(args.cases)
     measured = read_measured_lengths()
@@ -474,6 +476,10 @@ def main(argv=None) -> int:
     s.add_argument("--out", default=None, help="results folder (default experiments/results)")
     s.add_argument("--no-figures", action="store_true")
     s.add_argument("--cases", type=int, nargs="+", choices=sorted(CASES), default=None)
+    for command in (c, p, s):
+        command.add_argument("--calibration", default=str(CALIBRATION),
+                             help="the calibration file to write (calibrate) or use (default: "
+                                  "the committed experiments/results/v3_calibration.json)")
     args = parser.parse_args(argv)
     return {"calibrate": calibrate, "predict": predict, "score": score}[args.command](args)
 

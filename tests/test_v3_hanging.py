@@ -138,6 +138,8 @@ def test_quick_score_and_predict(script, case1, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["converged"] is True
     assert summary["seconds"] > 0 and summary["compile_seconds"] > 0
+    assert summary["calibration"] == "experiments/results/v3_calibration.json"
+    assert summary["trailing_edge_factor"] == calibration["trailing_edge_factor"]
     with open(out / "positions.csv", newline="") as file:
         rows = list(csv.DictReader(file))
     assert [int(r["node"]) for r in rows] == list(range(247))
