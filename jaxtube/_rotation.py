@@ -138,3 +138,26 @@ def inverse_right_jacobian_transpose(rotation_vector_: Array) -> Array:
     k = skew(rotation_vector_)
     eye = jnp.eye(3, dtype=rotation_vector_.dtype)
     return eye - 0.5 * k + c[..., None, None] * matmul3(k, k)
+
+
+def right_jacobian(rotation_vector_: Array) -> Array:
+    """``J_r(theta)``: ``exp(theta + d) = exp(theta) exp(J_r(theta) d)`` to first order in
+    ``d``. ``J_r = I - b [t]x + c [t]x^2`` with ``b = (1 - cos t) / t^2`` and ``c = (t - sin
+    t) / t^3`` (series ``1/2 - t^2/24 + ...`` and ``1/6 - t^2/120 + ...`` near zero, so
+    derivatives of every order stay exact there); ``J_r(-theta) = J_r(theta)^T`` is the left
+    Jacobian. Shapes ``[..., 3] -> [..., 3, 3]``. (Sola, Deray & Atchuthan, "A micro Lie
+    theory for state estimation in robotics", arXiv:1812.01537, 2018, the SO(3) right
+    Jacobian; ``docs/physics.md`` section 1.5.)
+    """
+    angle_sq = jnp.sum(rotation_vector_ * rotation_vector_, axis=-1)
+    small = angle_sq < _SMALL_ANGLE_SQ
+    safe_sq = jnp.where(small, 1.0, angle_sq)
+    angle = jnp.sqrt(safe_sq)
+    s = angle_sq
+    b = jnp.where(small, 0.5 - s / 24.0 + s * s / 720.0 - s * s * s / 40320.0,
+                  (1.0 - jnp.cos(angle)) / safe_sq)
+    c = jnp.where(small, 1.0 / 6.0 - s / 120.0 + s * s / 5040.0 - s * s * s / 362880.0,
+                  (angle - jnp.sin(angle)) / (safe_sq * angle))
+    k = skew(rotation_vector_)
+    eye = jnp.eye(3, dtype=rotation_vector_.dtype)
+    return eye - b[..., None, None] * k + c[..., None, None] * matmul3(k, k)

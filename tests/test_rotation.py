@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 import jaxtube as jt
-from jaxtube._rotation import inverse_right_jacobian_transpose, minimal_rotation, skew
+from jaxtube._rotation import (
+    inverse_right_jacobian_transpose,
+    minimal_rotation,
+    right_jacobian,
+    skew,
+)
 
 
 def _rodrigues_reference(theta):
@@ -78,6 +83,35 @@ def test_inverse_right_jacobian_matches_finite_differences():
     )(jnp.zeros(3))
     np.testing.assert_allclose(inverse_right_jacobian_transpose(theta), np.linalg.inv(jr).T,
                                atol=1e-12)
+
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-5, 5e-3, 0.3, 2.5])
+def test_right_jacobian_and_its_derivative(scale):
+    """``J_r`` is the derivative of ``d -> log(exp(theta)^T exp(theta + d))`` at 0, across its
+    Taylor branch and the closed form (``t^2`` below and above 1e-4), and so is its
+    forward-mode derivative (what the joints' Hessian blocks use); at zero, ``J_r = I``
+    and ``dJ_r/dtheta_k = -[e_k]x / 2``."""
+    direction = jnp.array([0.3, -0.5, 0.2]) / np.sqrt(0.38)
+
+    def reference(theta):
+        return jax.jacfwd(lambda d: jt.rotation_vector(
+            jt.rotation_matrix(theta).T @ jt.rotation_matrix(theta + d)))(jnp.zeros(3))
+
+    theta = scale * direction
+    np.testing.assert_allclose(right_jacobian(theta), reference(theta), atol=1e-13)
+    # J_r(-theta) = J_r(theta)^T (the left Jacobian).
+    np.testing.assert_allclose(right_jacobian(-theta), right_jacobian(theta).T, atol=1e-15)
+    tangent = jnp.array([0.7, 0.1, -0.4])
+    derivative = jax.jvp(right_jacobian, (theta,), (tangent,))[1]
+    assert np.all(np.isfinite(derivative))
+    if scale == 0.0:
+        np.testing.assert_allclose(derivative, -0.5 * skew(tangent), atol=1e-15)
+    else:
+        step = 1e-6 * max(scale, 1.0)
+        finite = (right_jacobian(theta + step * tangent)
+                  - right_jacobian(theta - step * tangent)) / (2 * step)
+        np.testing.assert_allclose(derivative, finite, atol=1e-8)
 
 
 def test_joint_energy_gradient_and_hessian_at_zero_rotation():

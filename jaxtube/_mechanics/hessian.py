@@ -13,7 +13,13 @@ import numpy as np
 from jax import Array
 
 from .._elements import dense_from_blocks, element_hessian_blocks, state_index
-from .._rotation import matvec3, rotation_matrix, transpose3
+from .._rotation import (
+    inverse_right_jacobian_transpose,
+    matvec3,
+    right_jacobian,
+    rotation_matrix,
+    transpose3,
+)
 from .._structure.structure import Structure
 from .energy import constraints, load_potential, shear_stiffness
 from .geometry import ReferenceGeometry
@@ -46,9 +52,11 @@ def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry,
     ``d^2/dphi_s^2 [g_s . Q_s0 exp(phi_s) e_s]`` per segment (5 x 5 over ``(phi_s,
     gamma_s)`` with shear, whose energy is per segment too); each spring joint contributes a
     6 x 6 block over the rotations of its two segments; torques are linear in ``phi``. The
-    blocks come from ``jax.hessian`` of these small element functions, vmapped, and are
-    scatter-added at static indices. Cost grows linearly with the segment count (the
-    dense autodiff Hessian grows quadratically and pushes every unknown through the chain).
+    blocks come from ``jax.hessian`` of these small element functions (the joints': the
+    forward-mode Jacobian of their gradient in closed form, ``docs/physics.md`` section
+    1.5), vmapped, and are scatter-added at static indices. Cost grows linearly with the
+    segment count (the dense autodiff Hessian grows quadratically and pushes every unknown
+    through the chain).
     Lines and pulleys add 6 x 6 and 9 x 9 blocks over their point nodes
     (``jaxtube._elements.element_hessian_blocks``); attachment ties are linear in the
     segment vectors and enter through ``g_s``.
@@ -104,18 +112,31 @@ def lagrangian_hessian_blocks(structure: Structure, geometry: ReferenceGeometry,
     for group in law_groups(law, params.bending_laws, params.torsion_laws):
         idx = group.joints
 
-        def joint_energy(pair, parent_map, child_map, grounded, tributary, radius, bending,
-                         torsion, pressure):
+        def joint_energy_gradient(pair, parent_map, child_map, grounded, tributary, radius,
+                                  bending, torsion, pressure):
+            """``d W / d (phi_a, phi_b)`` ``[6]`` of one joint, in closed form
+            (``docs/physics.md`` section 1.5); its forward-mode Jacobian is the joint's
+            Hessian block, exact, and cheaper than ``jax.hessian`` of ``W(log(exp(-u)
+            exp(v)))``."""
+            u, v = parent_map @ pair[:3], child_map @ pair[3:]
             theta = relative_joint_rotation(pair[:3], pair[3:], parent_map, child_map, grounded)
-            kappa = theta / tributary
-            w = bending.energy_density(kappa[0] ** 2 + kappa[1] ** 2, pressure, radius)
-            return tributary * (w + torsion.energy_density(kappa[2] ** 2, pressure, radius))
+
+            def energy(theta):
+                kappa = theta / tributary
+                w = bending.energy_density(kappa[0] ** 2 + kappa[1] ** 2, pressure, radius)
+                return tributary * (w + torsion.energy_density(kappa[2] ** 2, pressure, radius))
+
+            g = jax.grad(energy)(theta)
+            moment = inverse_right_jacobian_transpose(theta) @ g
+            d_v = jnp.where(grounded, g, right_jacobian(v).T @ moment)
+            d_u = jnp.where(grounded, 0.0, -(right_jacobian(-u).T @ (rotation_matrix(v) @ moment)))
+            return jnp.concatenate([parent_map.T @ d_u, child_map.T @ d_v])
 
         a, b = np.maximum(parent[idx], 0), child[idx]
         pair = jnp.concatenate([phi[a], phi[b]], axis=1)
         radius = params.node_radius[np.array([nodes[j] for j in idx], dtype=np.int32)]
         axis = group.law_axis
-        blocks = jax.vmap(jax.hessian(joint_energy), in_axes=(0,) * 6 + (axis,) * 3)(
+        blocks = jax.vmap(jax.jacfwd(joint_energy_gradient), in_axes=(0,) * 6 + (axis,) * 3)(
             pair, geometry.joint_parent_map[idx], geometry.joint_child_map[idx],
             parent[idx] == -1, geometry.joint_tributary[idx], radius,
             group.law(params.bending_laws), group.law(params.torsion_laws),
