@@ -148,6 +148,13 @@ def trailing_edge_rows(model) -> np.ndarray:
     return np.flatnonzero(on_edge & (nodes[:, 1] - nodes[:, 0] == 2))
 
 
+def scale_trailing_edge(params, rows, factor):
+    """``params`` with the rest lengths of lines ``rows`` (:func:`trailing_edge_rows`) times
+    ``factor`` (a number or a traced scalar). Traceable."""
+    rest = params.elements.line_rest_length.at[rows].multiply(factor)
+    return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
+
+
 def with_trailing_edge_factor(imported, factor):
     """``imported`` (a :class:`jaxtube.KiteFemImport`) with the trailing-edge springs' rest
     lengths times ``factor`` (the other lines, the tubes and the geometry as they are; a new
@@ -157,10 +164,8 @@ def with_trailing_edge_factor(imported, factor):
         raise ValueError(f"trailing_edge_factor: expected a positive number, got {factor!r}")
     if factor == 1.0:
         return imported
-    elements = imported.params.elements
-    rest = elements.line_rest_length.at[trailing_edge_rows(imported.model)].multiply(factor)
-    params = eqx.tree_at(lambda p: p.elements.line_rest_length, imported.params, rest)
-    return dataclasses.replace(imported, params=params)
+    return dataclasses.replace(imported, params=scale_trailing_edge(
+        imported.params, trailing_edge_rows(imported.model), factor))
 
 
 def import_case(pressure_bar, centre_load_kg=0.0, tip_load_kg=0.0, law_form="curvature"):

@@ -174,15 +174,11 @@ def calibrate(args) -> int:
             moved_f, factor = abs(found_f["x"] - factor), found_f["x"]
         rounds.append({"bending_scale": scale, "case1": found_s, "trailing_edge_factor": factor,
                        "tip_case": found_f})
-        if not te_case:
+        # Both numbers settled when a round (after the first) moved neither by more than its
+        # tolerance; with one number, one round.
+        settled = not te_case or (len(rounds) > 1 and max(moved_s, moved_f) < args.xatol)
+        if settled:
             break
-        if len(rounds) > 1 and moved_s < args.xatol and moved_f < args.xatol:
-            break
-    # The last round's searches started from the other number's final value; both numbers
-    # settled when the last round moved neither by more than its tolerance.
-    settled = len(rounds) > 1 and moved_s < args.xatol and moved_f < args.xatol
-    if not te_case:
-        settled = True
     last = rounds[-1]
     converged = (last["case1"]["converged"] and settled
                  and (last["tip_case"] is None or last["tip_case"]["converged"]))

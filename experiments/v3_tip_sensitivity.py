@@ -54,7 +54,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -69,8 +68,7 @@ SCANS = (("torsion x t", (1.0, 0.1, 0.3, 3.0)), ("lines x k", (0.3, 3.0, 10.0, 3
          ("trailing edge x f", (0.8, 0.85, 0.9, 0.92, 0.95)))
 CASES_SCANNED = (1, 4, 5)
 MEASURED_LENGTHS = v3.read_measured_lengths()
-_MODEL = jt.read_kite_fem(v3.MODEL)
-TE_MASK = jnp.zeros(len(_MODEL.spring_nodes)).at[v3.trailing_edge_rows(_MODEL)].set(1.0)
+TRAILING_EDGE_ROWS = v3.trailing_edge_rows(jt.read_kite_fem(v3.MODEL))
 
 
 def import_case(case: int, torsion_form: str):
@@ -89,16 +87,15 @@ def import_case(case: int, torsion_form: str):
 def with_factors(params, factors):
     """``factors = (s, t, k, f)``: every bending law's factor ``s``, every torsion law's
     ``t``, every line's stiffness x ``k``, the trailing-edge springs' rest lengths x ``f``
-    (traced; ``TE_MASK``: 1 on those springs)."""
+    (traced; :func:`v3.scale_trailing_edge`)."""
     bending, torsion, lines, edge = factors[0], factors[1], factors[2], factors[3]
     laws = tuple(eqx.tree_at(lambda law: law.factor, law, bending)
                  for law in params.bending_laws)
     twist = tuple(eqx.tree_at(lambda law: law.factor, law, torsion)
                   for law in params.torsion_laws)
-    elements = eqx.tree_at(
-        lambda e: (e.line_stiffness, e.line_rest_length), params.elements,
-        (params.elements.line_stiffness * lines,
-         params.elements.line_rest_length * (1.0 + TE_MASK * (edge - 1.0))))
+    params = v3.scale_trailing_edge(params, TRAILING_EDGE_ROWS, edge)
+    elements = eqx.tree_at(lambda e: e.line_stiffness, params.elements,
+                           params.elements.line_stiffness * lines)
     return eqx.tree_at(lambda p: (p.bending_laws, p.torsion_laws, p.elements), params,
                        (laws, twist, elements))
 
@@ -162,58 +159,58 @@ def evaluate(case: int, torsion_form: str, factors) -> dict:
     return row
 
 
+def fit_one_number(name, case, torsion_form, factors_of, bounds, xatol):
+    """``v3.search_one_number`` (bounded Brent, then the RMS on both sides) of ``case``'s RMS
+    over the number ``x``, each evaluation at ``factors_of(x)`` ``(s, t, k, f)`` and
+    ``torsion_form`` (:func:`import_case`); a hang that
+    does not converge stops the study. Returns ``(x, rms [mm], bracketed, every evaluation's
+    row of :func:`evaluate`)``."""
+    rows = []
+
+    def rms_of(x):
+        rows.append(evaluate(case, torsion_form, factors_of(x)))
+        return rows[-1].get("rms_mm"), {"converged": rows[-1]["converged"],
+                                        "newton_iterations": None}
+
+    found = v3.search_one_number(name, rms_of, bounds, xatol, 500, [])
+    bracketed = min(found["rms_mm_minus_plus"]) >= found["rms_mm"]
+    return found["x"], found["rms_mm"], bracketed, rows
+
+
 def fit_trailing_edge_to_case5(s: float, lines: list[str]) -> dict:
     """The trailing-edge factor fitted to case 5 alone (bounded Brent on ``f``, the committed
     ``s``), then case 4 predicted with it: the cross-check of the calibration's fit to
     case 4."""
-    history = []
-
-    def objective(f):
-        row = evaluate(5, "moment", (s, 1.0, 1.0, float(f)))
-        history.append(row)
-        return row["rms_mm"] if row["converged"] else 1e6
-
-    found = minimize_scalar(objective, bounds=v3.TRAILING_EDGE_BOUNDS, method="bounded",
-                            options={"xatol": 2e-3})
-    f = float(found.x)
-    h = 8e-3
-    bracketed = objective(f - h) >= found.fun <= objective(f + h)
+    f, rms, bracketed, history = fit_one_number(
+        "trailing-edge factor", 5, "moment", lambda x: (s, 1.0, 1.0, x),
+        v3.TRAILING_EDGE_BOUNDS, 2e-3)
     rows = [evaluate(case, "moment", (s, 1.0, 1.0, f)) for case in range(1, 6)]
-    lines.append(f"trailing edge fitted to case 5 alone: f = {f:.4f} ({found.fun:.1f} mm, "
+    lines.append(f"trailing edge fitted to case 5 alone: f = {f:.4f} ({rms:.1f} mm, "
                  f"{len(history)} evaluations, minimum bracketed: {bool(bracketed)}); then:")
     for row in rows:
         said = (f"{row['rms_mm']:.1f} mm, lengths "
                 f"{100 * row['length_mean_relative_error']:.1f} %" if row["converged"]
                 else "NOT CONVERGED")
         lines.append(f"  case {row['case']}: {said}")
-    return {"f": f, "case5_rms_mm": float(found.fun), "bracketed": bool(bracketed),
-            "cases": rows, "history": history}
+    return {"f": f, "case5_rms_mm": rms, "bracketed": bool(bracketed), "cases": rows,
+            "history": history}
 
 
 def refit_shared_torsion(scale0: float, lines: list[str]) -> dict:
     """``s`` on both laws (curvature form) refitted to case 1, then every case predicted."""
-    history = []
-
-    def objective(log_s):
-        s = float(np.exp(log_s))
-        row = evaluate(1, "curvature", (s, s, 1.0, 1.0))
-        history.append(row)
-        return row["rms_mm"] if row["converged"] else 1e6
-
-    found = minimize_scalar(objective, bounds=(np.log(0.1), np.log(1.0)), method="bounded",
-                            options={"xatol": 0.01})
-    s = float(np.exp(found.x))
-    h = 0.04
-    bracketed = objective(found.x - h) >= found.fun <= objective(found.x + h)
+    log_s, rms, bracketed, history = fit_one_number(
+        "log s (torsion shares s)", 1, "curvature", lambda x: (np.exp(x), np.exp(x), 1.0, 1.0),
+        (np.log(0.1), np.log(1.0)), 0.01)
+    s = float(np.exp(log_s))
     rows = [evaluate(case, "curvature", (s, s, 1.0, 1.0)) for case in range(1, 6)]
-    lines.append(f"torsion shares s: s = {s:.4f} refitted to case 1 ({found.fun:.1f} mm, "
+    lines.append(f"torsion shares s: s = {s:.4f} refitted to case 1 ({rms:.1f} mm, "
                  f"{len(history)} evaluations, minimum bracketed: {bool(bracketed)}; the "
                  f"committed s = {scale0:.4f} with torsion unscaled)")
     for row in rows:
         said = f"{row['rms_mm']:.1f} mm" if row["converged"] else "NOT CONVERGED"
         lines.append(f"  case {row['case']}: {said} ({row['seconds']} s)")
-    return {"s": s, "case1_rms_mm": float(found.fun), "bracketed": bool(bracketed),
-            "cases": rows, "history": history}
+    return {"s": s, "case1_rms_mm": rms, "bracketed": bool(bracketed), "cases": rows,
+            "history": history}
 
 
 def main() -> int:
