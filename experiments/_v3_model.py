@@ -111,7 +111,7 @@ DRIVE_STEPS = 24  # displacement-controlled solves (a static count: one compiled
 # The drive's largest step [m]. Measured 2026-12-05 (the same equilibria to 1e-10 m; the
 # drive's Newton steps on the four centre-load cases, 0.15 and 0.25 bar x 9.7 and 25.2 kg):
 # 0.1 m: 81, 127, 84, 110; 0.2 m: 85, 98, 69, 88. At 0.15 bar only: 0.15 m 69, 114;
-# 0.25 m 62, 91; 0.3 m 54, 123 (one 73-step solve). README, "Performance".
+# 0.25 m 62, 91; 0.3 m 54, 123 (one 73-step solve). docs/performance.md.
 DRIVE_INCREMENT_M = 0.2
 
 

@@ -4,23 +4,33 @@ The problem: a tree of tubes with loop constraints, about the size of a whole ki
 straight 50-segment booms 1 m apart, clamped at one end of the first, joined by 7 rungs of
 21 segments; each rung is rigidly joined to the first boom (tree edge) and pinned to the
 second (a loop closure, 3 constraints), and the far end of the second boom is joined to the
-first by a short pinned tie. 253 segments: n = 762 unknowns (3 per segment and the root
-position), m = 27 constraints (clamp 3 + 8 closures x 3). A load on every rung.
+first by a short tie of 3 segments, rigid at the first and pinned at the second. 250
+segments: n = 753 unknowns (3 per segment and the root position), m = 24 constraints
+(clamp 3 + 7 closures x 3). A load on every rung.
 
 Measured, each route compiled separately with ``NewtonKKT(linear_solver=...)``:
 
 - *one Newton step*: ``jaxtube.equilibrium`` with ``max_steps=1`` (the linearisation, the
   Hessian blocks, one KKT solve plus any regularised retries, the line search), on the
-  dense, sparse and augmented routes (``auto`` takes the augmented one here);
+  dense, sparse and augmented routes (``auto`` takes the augmented one here); also with
+  ``max_steps=0`` (the start and the post-processing of the result, no Newton pass), so
+  that the step proper is the difference;
+- *the ceiling of the ratio*: the work every route does in a step whatever its linear
+  algebra (each energy term's gradient, ``J^T lambda``, the Hessian blocks, the full step's
+  trial gradient), timed as one program: even a KKT solve that cost nothing leaves the
+  sparse step this long, so the dense step over it bounds the ratio any linear solver can
+  reach;
 - *one KKT solve*: the KKT matrix at the unloaded state with ``mu = 0``, solved once
   (dense: ``jnp.linalg.solve``; sparse: KLU with the symbolic analysis kept);
-- the size crossover of ``linear_solver="auto"``: one 10-step displacement-controlled
-  cantilever curve with 10, 20, 40 and 80 segments, dense against sparse.
+- the size crossover of ``linear_solver="auto"``: one KKT solve on cantilevers of 5 to 160
+  segments, dense against sparse;
+- with ``--scaling``: the Newton step, dense against augmented, on the ladder at half and
+  twice its segment counts (123 and 497 segments), to show how the ratio grows with size.
 
 Target: the sparse Newton step at least 10x faster than the dense one. Run from the
 repository root::
 
-    python experiments/bench_kkt.py [--quick]
+    python experiments/bench_kkt.py [--quick] [--scaling]
 
 Writes ``experiments/results/bench_kkt.txt`` (``--out``).
 """
@@ -28,6 +38,7 @@ Writes ``experiments/results/bench_kkt.txt`` (``--out``).
 from __future__ import annotations
 
 import argparse
+import datetime
 import sys
 import time
 from pathlib import Path
@@ -55,20 +66,23 @@ RUNG_SEGMENTS = 21
 TARGET = 10.0
 
 
-def ladder():
+def ladder(scale: float = 1.0):
+    """The ladder tree; ``scale`` multiplies the segment counts of booms and rungs (1: 250
+    segments, 753 unknowns; 2: 497 segments, 1,494 unknowns)."""
+    booms, rung_segments = round(BOOM_SEGMENTS * scale), round(RUNG_SEGMENTS * scale)
     law = jt.SplineLaw.from_tension_field(150e3, 2.5e4, 0.06)
     torsion = jt.LinearLaw(150.0)
-    tubes = [jt.straight_tube(name, (0, y, 0), (5.0, y, 0), BOOM_SEGMENTS, 0.06, 2.5e4, law,
+    tubes = [jt.straight_tube(name, (0, y, 0), (5.0, y, 0), booms, 0.06, 2.5e4, law,
                               torsion_law=torsion) for name, y in (("a", 0.0), ("b", 1.0))]
     connections, forces = [], {}
     for r in range(RUNGS):
-        k = 5 + 6 * r
-        x = 5.0 * k / BOOM_SEGMENTS
-        tubes.append(jt.straight_tube(f"r{r}", (x, 0, 0), (x, 1.0, 0), RUNG_SEGMENTS, 0.04,
+        k = round((5 + 6 * r) * scale)
+        x = 5.0 * k / booms
+        tubes.append(jt.straight_tube(f"r{r}", (x, 0, 0), (x, 1.0, 0), rung_segments, 0.04,
                                       3e4, law, torsion_law=torsion))
         connections += [jt.Connection(f"a:{k}", f"r{r}:0", "rigid"),
                         jt.Connection(f"b:{k}", f"r{r}:end", "pinned")]
-        forces[f"r{r}:{RUNG_SEGMENTS // 2}"] = [0.0, 0.0, -5.0]
+        forces[f"r{r}:{rung_segments // 2}"] = [0.0, 0.0, -5.0]
     tubes.append(jt.straight_tube("tie", (5.0, 0, 0), (5.0, 1.0, 0), 3, 0.03, 3e4, law,
                                   torsion_law=torsion))
     connections += [jt.Connection("a:end", "tie:0", "rigid"),
@@ -120,6 +134,79 @@ def kkt_solvers(blocks, n, m):
     return {"dense": dense_solve, "sparse": sparse_solve}
 
 
+def newton_step_timings(report, structure, params, labels, repeats):
+    """One Newton step by each route (``jaxtube.equilibrium`` with ``max_steps=1``) and the
+    same call with no Newton pass (``max_steps=0``): ``({label: (Timing, node positions
+    [N, 3] after the step)}, {label: median seconds with no pass})``."""
+    steps, bare = {}, {}
+    for label in labels:
+        for max_steps in (1, 0):
+            solver = jt.NewtonKKT(max_steps=max_steps, linear_solver=label)
+            fn = jax.jit(lambda p, solver=solver: jt.equilibrium(structure, p, solver=solver))
+            started = time.perf_counter()
+            compiled = fn.lower(params).compile()
+            compile_s = time.perf_counter() - started
+            timing, sol = time_warm(compiled, params, repeats=10 * repeats)
+            if max_steps:
+                steps[label] = (timing, np.asarray(sol.node_position))
+                report(f"one Newton step ({label}): compile {compile_s:.1f} s; warm "
+                       f"{timing.text(1e-3, 'ms')}; result code {int(sol.result)}")
+            else:
+                bare[label] = timing.median
+                report(f"  the same call with no Newton pass (start, post-processing): "
+                       f"{timing.text(1e-3, 'ms')}")
+    return steps, bare
+
+
+def scaling(report: Report, repeats: int) -> None:
+    """The Newton step, dense against augmented, on the ladder at half, once and twice its
+    size: how the ratio grows with the structure."""
+    report("scaling: one Newton step on the ladder at 0.5, 1 and 2 times its segment counts")
+    for scale in (0.5, 1.0, 2.0):
+        structure, params = ladder(scale)
+        n = ravel_pytree(jt.initial_state(structure, params))[0].size
+        report(f"- scale {scale:g}: {structure.segment_count} segments, n = {n} unknowns")
+        steps, bare = newton_step_timings(report, structure, params, ("dense", "augmented"),
+                                          repeats)
+        dense, augmented = steps["dense"][0].median, steps["augmented"][0].median
+        report(f"  dense / augmented: {dense / augmented:.1f}x (the step proper: "
+               f"{(dense - bare['dense']) / (augmented - bare['augmented']):.1f}x); positions "
+               f"agree to "
+               f"{np.max(np.abs(steps['dense'][1] - steps['augmented'][1])):.1e} m")
+
+
+def shared_step_work(structure, params, repeats):
+    """Timing of the work in one Newton step that every KKT route does, as one program: the
+    gradient of each energy term, ``J^T lambda`` (one reverse pass of the constraints), the
+    Hessian blocks and the gradient of the Lagrangian at the full step (the line search's
+    first trial), at the unloaded state with unit multipliers."""
+    from jaxtube._equilibrium import _model_hessian, _model_objective
+
+    args = (params, reference_geometry(structure, params), None)
+    state = jt.initial_state(structure, params)
+    z, unravel = ravel_pytree(state)
+
+    def objective(zz):
+        return _model_objective(unravel(zz), args, structure=structure, control_node=None)
+
+    k, m = (x.shape[0] for x in jax.eval_shape(objective, z))
+
+    @jax.jit
+    def work(z, lam, dz):
+        parts, part_pullback = jax.vjp(lambda zz: objective(zz)[0], z)
+        (part_grads,) = jax.vmap(part_pullback)(jnp.eye(k))
+        c, constraint_pullback = jax.vjp(lambda zz: objective(zz)[1], z)
+        (jt_lam,) = constraint_pullback(lam)
+        blocks = _model_hessian(unravel(z), lam, args, structure=structure,
+                                control_node=None)
+        trial = jax.grad(lambda zz: jnp.sum(objective(zz)[0]) + lam @ objective(zz)[1])(z + dz)
+        return parts, part_grads, c, jt_lam, [v for _, _, v in blocks], trial
+
+    lam, dz = jnp.ones((m,)), 1e-3 * jnp.ones_like(z)
+    timing, _ = time_warm(work, z, lam, dz, repeats=10 * repeats)
+    return timing
+
+
 def solve_timings(structure, params, repeats):
     """Median seconds of one KKT solve by each route at the unloaded state."""
     blocks, jacobian = kkt_parts(structure, params)
@@ -135,7 +222,8 @@ def solve_timings(structure, params, repeats):
 
 
 def run(report: Report, repeats: int) -> None:
-    report(f"jaxtube KKT benchmark; {load_text()}")
+    report(f"jaxtube KKT benchmark, {datetime.datetime.now().isoformat(timespec='seconds')}, "
+           f"{repeats} repeats (x 5 for the solves, x 10 for the steps); {load_text()}")
     structure, params = ladder()
     blocks, jacobian = kkt_parts(structure, params)
     m, n = jacobian.shape
@@ -159,24 +247,28 @@ def run(report: Report, repeats: int) -> None:
            f"(relative); ratio dense / sparse "
            f"{solves['dense'][0].median / solves['sparse'][0].median:.1f}x")
 
-    steps = {}
-    for label in ("dense", "sparse", "augmented"):
-        solver = jt.NewtonKKT(max_steps=1, linear_solver=label)
-        fn = jax.jit(lambda p, solver=solver: jt.equilibrium(structure, p, solver=solver))
-        started = time.perf_counter()
-        compiled = fn.lower(params).compile()
-        compile_s = time.perf_counter() - started
-        timing, sol = time_warm(compiled, params, repeats=repeats)
-        steps[label] = (timing, np.asarray(sol.node_position))
-        report(f"one Newton step ({label}): compile {compile_s:.1f} s; warm "
-               f"{timing.text(1e-3, 'ms')}; result code {int(sol.result)}")
+    steps, bare = newton_step_timings(report, structure, params,
+                                      ("dense", "sparse", "augmented"), repeats)
     for label in ("sparse", "augmented"):
         ratio = steps["dense"][0].median / steps[label][0].median
+        proper = ((steps["dense"][0].median - bare["dense"])
+                  / (steps[label][0].median - bare[label]))
         agree = np.max(np.abs(steps["dense"][1] - steps[label][1]))
         report(f"  {label}: positions after the step agree with dense to {agree:.1e} m; "
-               f"ratio dense / {label} {ratio:.1f}x")
+               f"ratio dense / {label} {ratio:.1f}x (the step proper, without the start and "
+               f"post-processing: {proper:.1f}x)")
         verdict = "met" if ratio >= TARGET else f"missed ({ratio:.1f}x)"
         report(f"target: {label} Newton step >= {TARGET:g}x faster than dense: {verdict}")
+    shared = shared_step_work(structure, params, repeats)
+    dense_proper = steps["dense"][0].median - bare["dense"]
+    report(f"the work of a step that no linear solver removes (each term's gradient, J^T "
+           f"lambda, the Hessian blocks, the trial gradient; one program): "
+           f"{shared.text(1e-3, 'ms')}")
+    report(f"  ceiling: with a KKT solve that cost nothing, the dense step proper "
+           f"({1e3 * dense_proper:.2f} ms) over this: {dense_proper / shared.median:.1f}x; the "
+           f"whole call ({1e3 * steps['dense'][0].median:.2f} ms) over this plus the start and "
+           f"post-processing: "
+           f"{steps['dense'][0].median / (shared.median + bare['augmented']):.1f}x")
 
     report("crossover: one KKT solve (assembly from blocks included) on cantilevers:")
     law = jt.SplineLaw.from_tension_field(150e3, 2e4, 0.075)
@@ -200,11 +292,15 @@ def jt_crossover():
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="2 repeats instead of 5")
+    parser.add_argument("--scaling", action="store_true",
+                        help="also the Newton step at half and twice the ladder's size")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent
                         / "results" / "bench_kkt.txt")
     args = parser.parse_args(argv)
     report = Report()
     run(report, repeats=2 if args.quick else 5)
+    if args.scaling:
+        scaling(report, repeats=2 if args.quick else 5)
     report.write(args.out)
     return 0
 

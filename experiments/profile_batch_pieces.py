@@ -7,14 +7,22 @@ Pieces: the energy terms; the energy's gradient; the rows the stopping rule need
 energy term's gradient and the constraint Jacobian, as ``jaxtube._solver.newton_kkt``
 computes them); the Hessian blocks of the Lagrangian (``lagrangian_hessian_blocks``); a
 dense 67 x 67 KKT solve. Then the largest piece taken apart: the joint blocks of the
-Hessian, the law's part alone, the joint rotation's part alone (``log(exp(-u) exp(v))``
-differentiated twice), by the engine's matrix route and, as a what-if not used by the
-engine, by unit quaternions (defined here; equal to the matrix route to round-off below a
-relative angle of pi).
+Hessian as ``jax.hessian`` of the joint energy (the engine's route until 2026-12-05; it
+now takes the forward-mode Jacobian of the closed-form gradient, inside "Hessian blocks"),
+the law's part alone, the joint rotation's part alone (``log(exp(-u) exp(v))``
+differentiated twice), by rotation matrices and, as a what-if not used by the engine, by
+unit quaternions (defined here; equal to the matrix route to round-off below a relative
+angle of pi).
 
 Each piece is its own jitted program called from Python, so at batch 1 the figures include
 the dispatch of one call (tens of microseconds) that a solve inside its while loop does not
 pay; compare batches with each other, not with the solver's per-step times.
+
+Last, the whole of one Newton pass of the engine, measured as the difference of two
+``jt.equilibrium`` calls (``max_steps=1`` less ``max_steps=0``), so without the dispatch: at
+batch 1 it is what a loop of single solves pays per pass, and its ratio to the batched
+figure is the most a batch can gain over that loop per pass (before lockstep and the line
+search's extra trials, which only lower it).
 
     python experiments/profile_batch_pieces.py [--out experiments/results/profile_batch_pieces.txt]
 """
@@ -80,6 +88,33 @@ def matrix_relative_rotation(u, v):
     """The engine's joint rotation (``relative_joint_rotation``) with identity maps."""
     eye = jnp.eye(3, dtype=u.dtype)
     return relative_joint_rotation(u, v, eye, eye, False)
+
+
+def newton_pass_costs(structure, params, control, path, step) -> list[float]:
+    """Per-member microseconds of one Newton pass of the engine under ``vmap``, each batch
+    size of ``BATCHES``: the whole ``jt.equilibrium`` call with ``max_steps=1`` less the same
+    call with ``max_steps=0`` (start and post-processing), from the solution at ``step - 1``
+    to the displacement of ``step``."""
+    initial = jax.tree_util.tree_map(lambda x: x[step - 1], path)
+    displacement = control.displacements[step]
+
+    def solve(pressure, max_steps):
+        member = eqx.tree_at(lambda q: q.pressure, params,
+                             jnp.full_like(params.pressure, pressure))
+        return jt.equilibrium(structure, member, control, displacement, initial,
+                              jt.NewtonKKT(max_steps=max_steps)).iterations
+
+    costs = []
+    for batch in BATCHES:
+        pressures = bench_solver.PRESSURE * jnp.linspace(0.99, 1.01, batch)
+        seconds = {}
+        for max_steps in (1, 0):
+            program = jax.jit(jax.vmap(lambda pr, max_steps=max_steps: solve(pr, max_steps)))
+            if max_steps and not bool(jnp.all(program(pressures) == 1)):
+                raise RuntimeError("a member did not take its Newton step")
+            seconds[max_steps] = median_seconds(program, pressures)
+        costs.append((seconds[1] - seconds[0]) / batch * 1e6)
+    return costs
 
 
 def main(argv=None) -> int:
@@ -173,7 +208,7 @@ def main(argv=None) -> int:
            f"{float(jnp.max(jnp.abs(blocks_q - blocks_m)) / jnp.max(jnp.abs(blocks_m))):.1e} "
            f"relative")
     more = {
-        "joint blocks (matrix route)": lambda z, mult, p: joint_blocks(
+        "joint blocks (jax.hessian, matrices)": lambda z, mult, p: joint_blocks(
             p, matrix_relative_rotation),
         "  the law's part alone": lambda z, mult, p: law_only(p),
         "  the rotation's part alone": lambda z, mult, p: rotation_only(
@@ -183,6 +218,7 @@ def main(argv=None) -> int:
         "  the rotation's part alone (q.)": lambda z, mult, p: rotation_only(
             p, quaternion_relative_rotation),
     }
+    pass_costs = newton_pass_costs(structure, params, control, path, step)
     report("per-member microseconds under jax.vmap (median of 30 calls of one jitted program):")
     report(f"{'piece':36s}" + "".join(f"{'batch ' + str(b):>12s}" for b in BATCHES))
     table = {name: [] for name in (*pieces, *more)}
@@ -197,6 +233,13 @@ def main(argv=None) -> int:
             table[name].append(median_seconds(program, z_b, lam_b, members) / batch * 1e6)
     for name, values in table.items():
         report(f"{name:36s}" + "".join(f"{v:12.1f}" for v in values))
+    report(f"{'one Newton pass of the engine':36s}" + "".join(f"{v:12.1f}" for v in pass_costs))
+    report(f"  (jt.equilibrium from step {step - 1}'s solution to step {step}'s displacement, "
+           f"max_steps=1 less max_steps=0, members 1 % apart in pressure: the same work per "
+           f"member; batch 1 is what a loop of single solves pays per pass)")
+    report(f"  throughput of a batched pass over a single one: "
+           + ", ".join(f"batch {b} {pass_costs[0] / c:.2f}x"
+                       for b, c in zip(BATCHES[1:], pass_costs[1:])))
     one, five, _ = os.getloadavg()
     report(f"load average {one:.1f} / {five:.1f} on {os.cpu_count()} cores; jax "
            f"{jax.__version__}")

@@ -1,6 +1,6 @@
 """A persistent XLA compilation cache for jaxtube's programs, under the user's cache directory.
 
-Compiling one structure's solver takes 10-40 s on a small CPU (README "Performance"); the
+Compiling one structure's solver takes 10-40 s on a small CPU (``docs/performance.md``); the
 command line compiles the same programs on every run. :func:`enable_compilation_cache`
 points JAX's persistent compilation cache at ``$XDG_CACHE_HOME/jaxtube/xla`` (or
 ``~/.cache/jaxtube/xla``), so a second run in a fresh process loads the compiled programs

@@ -9,7 +9,7 @@ predictor of pseudo-arclength continuation without its corrector (Allgower & Geo
 *Introduction to Numerical Continuation Methods*, ch. 2). Newton then starts at a distance of
 second order in the step rather than first: on the 50-step curve through collapse of
 ``experiments/bench_solver.py`` the Newton steps fell from 160 to 119 and the time by about a
-fifth (README "Performance"). Gradients w.r.t. the parameters come by the implicit function
+fifth (``docs/performance.md``). Gradients w.r.t. the parameters come by the implicit function
 theorem at every step, and do not depend on the start.
 """
 

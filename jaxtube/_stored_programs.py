@@ -4,7 +4,7 @@ second run.
 A persistent compilation cache (``jaxtube._compilation_cache``) saves XLA's compilation,
 not Python's tracing. The fit's residual-and-Jacobian program (``jacfwd`` of a ``vmap`` of a
 ``scan`` of the implicitly differentiated Newton solve) takes 6.6 s to trace and 0.7 s to
-lower on every run of ``jaxtube demo`` (measured 2026-12-05, README "Performance"), about a
+lower on every run of ``jaxtube demo`` (measured 2026-12-05, ``docs/performance.md``), about a
 quarter of a second run. :func:`stored_jit` keeps each traced program as a serialised
 ``jax.export.Exported`` (StableHLO) under ``$XDG_CACHE_HOME/jaxtube/traced``; a later process
 with the same code, the same static arguments and the same input shapes loads it instead of

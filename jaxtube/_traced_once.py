@@ -7,8 +7,8 @@ Called as plain Python, each call re-runs the model's Python code under every ac
 transformation. Wrapped in ``jax.jit``, the model is traced once per structure and input
 shape, and the transformations act on its jaxpr (their rules are cached), which (with the
 solver's own changes, ``jaxtube._solver.newton_kkt``) cut the trace of the fit's
-residual-and-Jacobian program on the demo data from 35.7 s to about 6 s (README
-"Performance").
+residual-and-Jacobian program on the demo data from 35.7 s to about 6 s
+(``docs/performance.md``).
 
 A Hessian in block form returns *static* integer index arrays beside its traced values
 (``jaxtube._solver.kkt_linear``); ``jax.jit`` would turn them into traced outputs.

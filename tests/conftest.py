@@ -4,7 +4,7 @@ XLA CPU kernels.
 The suite runs on two worker processes (pytest-xdist, see pyproject.toml) on two-core
 machines. XLA's default multi-threaded Eigen kernels then oversubscribe the cores: a small
 dense solve that takes ~6 ms on one thread took 150-300 ms under that contention
-(measured on this project's CI-sized machine, README "Performance"). The flags must be set
+(measured on this project's CI-sized machine, docs/performance.md). The flags must be set
 before JAX initialises its CPU backend, hence here, before ``import jax``; a value the
 caller already put in ``XLA_FLAGS`` is kept.
 
