@@ -237,7 +237,7 @@ def main(argv=None) -> int:
     report(f"  (jt.equilibrium from step {step - 1}'s solution to step {step}'s displacement, "
            f"max_steps=1 less max_steps=0, members 1 % apart in pressure: the same work per "
            f"member; batch 1 is what a loop of single solves pays per pass)")
-    report(f"  throughput of a batched pass over a single one: "
+    report("  throughput of a batched pass over a single one: "
            + ", ".join(f"batch {b} {pass_costs[0] / c:.2f}x"
                        for b, c in zip(BATCHES[1:], pass_costs[1:])))
     one, five, _ = os.getloadavg()
