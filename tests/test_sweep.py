@@ -253,6 +253,53 @@ def test_sharded_over_four_host_devices_equals_single_device(soft, tmp_path):
                                        atol=0, err_msg=name)
 
 
+GENERIC_SHARDED = textwrap.dedent("""
+    import os
+    import sys
+    # Held to the given CPUs before JAX starts: XLA sizes its CPU thread pool from them.
+    os.sched_setaffinity(0, [int(c) for c in sys.argv[5].split(",")])
+    import numpy as np
+    import jax
+    import jaxtube as jt
+    from fitting import SelfWeight, SweepSettings, TubeModel, sweep
+    assert len(jax.devices()) == 2, jax.devices()
+    p, r, length, out = (np.load(sys.argv[1])[k] for k in ("p", "r", "length", "out"))
+    model = TubeModel(jt.TensionFieldLaw(float(sys.argv[2])), effects=(SelfWeight(0.02),))
+    result = sweep(model, p, r, length, float(sys.argv[3]),
+                   SweepSettings(chunk_size=4, segments=20))
+    assert result.devices == 2 and result.route == "generic"
+    np.savez(str(out), **{k: getattr(result, k) for k in sys.argv[4].split(",")})
+""")
+
+
+def test_generic_route_sharded_over_two_host_devices_of_two_cores(tmp_path):
+    """The generic route (a 20-segment chain: its KKT matrices are large enough for jaxlib's
+    batched LU to split a batch over XLA's CPU thread pool) on 2 forced host devices, the
+    process held to 2 CPUs so that the pool has no thread to spare: each device's points one
+    after another, it finishes (a ``vmap`` per device hung here for good) and equals the
+    single-device sweep."""
+    points = [0, 1, 3, 5]
+    inputs, out = tmp_path / "inputs.npz", tmp_path / "sharded.npz"
+    np.savez(inputs, p=PRESSURE[points], r=RADIUS[points], length=LENGTH[points], out=str(out))
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS="cpu", PYTHONPATH=str(REPO))
+    cpus = ",".join(str(c) for c in sorted(os.sched_getaffinity(0))[:2])
+    done = subprocess.run([sys.executable, "-c", GENERIC_SHARDED, str(inputs), str(SOFT_WALL),
+                           str(TIP_LOAD), ",".join(COMPARED), cpus], env=env, cwd=REPO,
+                          capture_output=True, text=True, timeout=400)
+    assert done.returncode == 0, done.stderr[-3000:]
+    sharded = np.load(out)
+    model = TubeModel(jt.TensionFieldLaw(SOFT_WALL), effects=(SelfWeight(0.02),))
+    single = sweep(model, PRESSURE[points], RADIUS[points], LENGTH[points], TIP_LOAD,
+                   SweepSettings(chunk_size=4, segments=20), devices=jax.devices()[:1])
+    for name in COMPARED:
+        if sharded[name].dtype.kind in "iub":
+            np.testing.assert_array_equal(sharded[name], getattr(single, name), err_msg=name)
+        else:
+            np.testing.assert_allclose(sharded[name], getattr(single, name), rtol=1e-12,
+                                       atol=0, err_msg=name)
+
+
 def test_cli_end_to_end_on_a_tiny_grid(tmp_path, capsys):
     out = tmp_path / "sweep"
     code = main(["sweep", "--law", "tension_field", "--wall-modulus-N-per-m", str(SOFT_WALL),
