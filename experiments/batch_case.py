@@ -2,7 +2,8 @@
 Python loop of single curves, for each solver setting, in the same process.
 
 For every setting (``NewtonKKT`` globalisation and linear solver) two programs are compiled:
-the curve under ``vmap`` over a batch of grid members, and the single curve. Each repeat
+the curve under ``vmap`` over a batch of grid members (for ``MAP_MEMBERS``: under
+``jt.map_members``, over every device of the process), and the single curve. Each repeat
 runs, interleaved over the settings, the batch once and a Python loop of the single curve
 over the same members once, so the two are measured under the same machine load. Every
 batched member's forces are compared with its single solve.
@@ -25,6 +26,9 @@ SETTINGS = {
     "fixed_trials, dense": jt.NewtonKKT(globalisation="fixed_trials", linear_solver="dense"),
     "fixed_trials, sparse": jt.NewtonKKT(globalisation="fixed_trials", linear_solver="sparse"),
 }
+#: Not a ``vmap``: ``jt.map_members`` of the default solver's curve, the members split over
+#: every device of the process (``--cpu-devices``) and solved one after another on each.
+MAP_MEMBERS = "map_members, default solver"
 
 
 def curve_function(structure, params, control, solver):
@@ -44,13 +48,15 @@ def measure_batches(report, structure, params, control, grid_p, grid_r, members,
                     compile_timed, settings=None):
     """Measure every setting; returns ``{name: dict}`` with the warm medians [s] of the batch
     and of the loop, compile times [s], convergence and Newton step counts."""
-    settings = SETTINGS if settings is None else settings
+    settings = ({**SETTINGS, MAP_MEMBERS: jt.NewtonKKT()} if settings is None
+                else settings)
     batch = members.size
     batch_p, batch_r = jnp.asarray(grid_p[members]), jnp.asarray(grid_r[members])
     programs = {}
     for name, solver in settings.items():
         fn = curve_function(structure, params, control, solver)
-        batched, lower_b, compile_b, _ = compile_timed(jax.vmap(fn), batch_p, batch_r)
+        many = jt.map_members(fn) if name == MAP_MEMBERS else jax.vmap(fn)
+        batched, lower_b, compile_b, _ = compile_timed(many, batch_p, batch_r)
         single, lower_s, compile_s, _ = compile_timed(fn, batch_p[0], batch_r[0])
         programs[name] = (batched, single, lower_b + compile_b, lower_s + compile_s)
         report(f"    {name}: compile batched {lower_b + compile_b:.1f} s, single "
@@ -90,9 +96,11 @@ def measure_batches(report, structure, params, control, grid_p, grid_r, members,
                f"{np.round(walls[name]['batch'], 2).tolist()}), loop of single curves "
                f"{loop_median:.2f} s ({loop_median / batch * 1e3:.0f} ms per curve): batched "
                f"{loop_median / batch_median:.2f}x the loop's throughput")
+        lockstep = ("one after another on each device, no lockstep" if name == MAP_MEMBERS
+                    else f"{results[name]['lockstep']} in lockstep")
         report(f"      members converged {results[name]['converged']}/{batch}; Newton steps "
-               f"{results[name]['steps']:.1f} per curve on average, {results[name]['lockstep']} "
-               f"in lockstep; batched members equal their single solves: forces to "
+               f"{results[name]['steps']:.1f} per curve on average, {lockstep}; batched "
+               f"members equal their single solves: forces to "
                f"{difference:.1e} relative, Newton steps "
                f"{'identical' if results[name]['same_steps'] else 'DIFFER'}")
     report(f"    end: {load_now()}")

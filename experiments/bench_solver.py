@@ -8,7 +8,9 @@ the tension-field law with E t = 150 kN/m; Breukels & Ockels 2008):
 - (c) ``jax.vmap`` of such curves over a pressure x radius grid (0.1-0.5 bar x 50-100 mm),
   against a Python loop of the single curve over the same members in the same run, for the
   default solver and ``NewtonKKT(globalisation="fixed_trials")`` with the dense and the sparse
-  KKT route (``batch_case.py``); ``--batch-only`` runs (c) alone;
+  KKT route, and ``jt.map_members`` of the default solver's curve (the members split over
+  the process's devices, ``--cpu-devices N``, and solved one after another on each:
+  ``batch_case.py``); ``--batch-only`` runs (c) alone;
 - a straightforward ``scipy.optimize.minimize(method="SLSQP")`` implementation of the same
   energy in numpy (finite-difference gradients, displacement control as an equality
   constraint), timed in the same process, as the baseline of (b).
@@ -19,7 +21,7 @@ This is a script, not a test. Run from the repository root::
 
     python experiments/bench_solver.py            # full mode, a few minutes
     python experiments/bench_solver.py --quick    # fewer repeats, tiny batch (CI)
-    python experiments/bench_solver.py --batch-only --batch 32 \
+    python experiments/bench_solver.py --batch-only --batch 32 --cpu-devices 2 \
         --out experiments/results/bench_solver_batch.txt
 
 The output is printed and written to ``experiments/results/bench_solver.txt`` (``--out``).
@@ -42,6 +44,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+if "--cpu-devices" in sys.argv:  # read by jaxtube at import, before JAX starts
+    os.environ["JAXTUBE_CPU_DEVICES"] = sys.argv[sys.argv.index("--cpu-devices") + 1]
 
 try:
     import jaxtube as jt
@@ -348,6 +353,9 @@ def main(argv=None) -> int:
                              "for 1000 is scaled from it")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).resolve().parent / "results" / "bench_solver.txt")
+    parser.add_argument("--cpu-devices", default=None,
+                        help="CPU devices of the process (JAXTUBE_CPU_DEVICES: N or auto), "
+                             "over which (c)'s map_members setting splits the curves")
     parser.add_argument("--batch-only", action="store_true",
                         help="run case (c) alone (the batch against the loop of single curves)")
     args = parser.parse_args(argv)
@@ -369,7 +377,7 @@ def main(argv=None) -> int:
            f"python {platform.python_version()}, jax {jax.__version__} "
            f"({jax.default_backend()}), numpy {np.__version__}, scipy {scipy.__version__}")
     report(f"jaxtube sources sha256[:12] {source_fingerprint()} ({Path(jt.__file__).parent})")
-    report(f"start: {load_text()}")
+    report(f"start: {load_text()}; {jax.device_count()} device(s)")
     report(f"problem: {SEGMENTS}-segment 3-D cantilever, L = {LENGTH} m, r = {RADIUS} m, "
            f"p = {PRESSURE / 1e5} bar, spline law from the tension-field law, "
            f"E t = {WALL_MODULUS / 1e3:g} kN/m; 63 unknowns (root position + 20 rotation "

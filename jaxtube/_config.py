@@ -11,6 +11,12 @@ Float64: Newton tolerances need double precision, so ``jax_enable_x64`` is turne
 (README, "Float64"). ``JAXTUBE_NO_X64=1`` keeps JAX's default; solves then raise a clear
 ``TypeError`` instead of silently failing in float32.
 
+CPU devices: ``JAXTUBE_CPU_DEVICES=N`` (or ``auto``: the CPUs this process may run on) adds
+``--xla_force_host_platform_device_count=N`` unless ``XLA_FLAGS`` already sets it, so that
+``jaxtube.map_members`` can split independent solves over the cores (README, "Many solves at
+once"). Off by default: with several devices ``fitting.sweep`` and anything else that
+shards over ``jax.devices()`` use them all.
+
 ``jaxtube/__init__.py`` imports this module first, so the settings hold before any other
 jaxtube module imports JAX.
 """
@@ -21,6 +27,29 @@ if ("xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", "")
         and os.environ.get("JAXTUBE_XLA_THREADS", "0") in ("", "0")):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
                                + " --xla_cpu_multi_thread_eigen=false").strip()
+
+
+def _cpu_device_count(value: str) -> int:
+    """``JAXTUBE_CPU_DEVICES``: a positive integer or ``auto``."""
+    if value.strip().lower() == "auto":
+        try:
+            return len(os.sched_getaffinity(0))
+        except AttributeError:  # not on Linux
+            return os.cpu_count() or 1
+    try:
+        count = int(value)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise ValueError(f"JAXTUBE_CPU_DEVICES must be a positive integer or 'auto', got "
+                         f"{value!r}.")
+    return count
+
+
+_devices = os.environ.get("JAXTUBE_CPU_DEVICES", "")
+if _devices and "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_"
+                               f"device_count={_cpu_device_count(_devices)}").strip()
 
 import jax  # noqa: E402  (after XLA_FLAGS: the flag must be set before JAX starts)
 

@@ -242,14 +242,17 @@ def test_sharded_over_four_host_devices_equals_single_device(soft, tmp_path):
                            str(TIP_LOAD), ",".join(COMPARED)], env=env, cwd=REPO,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
-    sharded = np.load(out)
-    # Statuses and Newton step counts exactly; values to round-off (the partitioned program
-    # fuses differently, measured differences about 1 ulp).
+    # Values to round-off: the partitioned program fuses differently (about 1 ulp measured).
+    assert_same_sweep(np.load(out), soft, rtol=1e-13)
+
+
+def assert_same_sweep(sharded, single, rtol):
+    """Statuses and Newton step counts exactly, values to ``rtol``."""
     for name in COMPARED:
         if sharded[name].dtype.kind in "iub":
-            np.testing.assert_array_equal(sharded[name], getattr(soft, name), err_msg=name)
+            np.testing.assert_array_equal(sharded[name], getattr(single, name), err_msg=name)
         else:
-            np.testing.assert_allclose(sharded[name], getattr(soft, name), rtol=1e-13,
+            np.testing.assert_allclose(sharded[name], getattr(single, name), rtol=rtol,
                                        atol=0, err_msg=name)
 
 
@@ -288,16 +291,10 @@ def test_generic_route_sharded_over_two_host_devices_of_two_cores(tmp_path):
                            str(TIP_LOAD), ",".join(COMPARED), cpus], env=env, cwd=REPO,
                           capture_output=True, text=True, timeout=400)
     assert done.returncode == 0, done.stderr[-3000:]
-    sharded = np.load(out)
     model = TubeModel(jt.TensionFieldLaw(SOFT_WALL), effects=(SelfWeight(0.02),))
     single = sweep(model, PRESSURE[points], RADIUS[points], LENGTH[points], TIP_LOAD,
                    SweepSettings(chunk_size=4, segments=20), devices=jax.devices()[:1])
-    for name in COMPARED:
-        if sharded[name].dtype.kind in "iub":
-            np.testing.assert_array_equal(sharded[name], getattr(single, name), err_msg=name)
-        else:
-            np.testing.assert_allclose(sharded[name], getattr(single, name), rtol=1e-12,
-                                       atol=0, err_msg=name)
+    assert_same_sweep(np.load(out), single, rtol=1e-12)
 
 
 def test_cli_end_to_end_on_a_tiny_grid(tmp_path, capsys):
