@@ -86,7 +86,9 @@ def add_sweep(subparsers) -> None:
         description="Evaluate a fitted or given bending law on the standard bench cantilever "
                     "over a grid: initial bending stiffness, wrinkling and collapse loads, "
                     "tip deflection at a given load. Writes sweep.csv, heatmaps and "
-                    "summary.json.")
+                    "summary.json. The grid is split over every JAX device of the process; "
+                    "on a CPU, JAXTUBE_CPU_DEVICES=auto (set before the command) gives one "
+                    "device per core.")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--params", type=Path, help="parameters.json of 'jaxtube fit'")
     source.add_argument("--law", choices=LAWS, help="a given law instead of a fitted one")
