@@ -55,14 +55,20 @@ def map_members(fn: Callable, devices=None) -> Callable:
         return jax.vmap(fn)(*args)
 
     if len(devices) == 1:
-        return jax.jit(local)
+        one = jax.jit(local)
+
+        def run_on_one(*args):
+            _member_count(args)
+            return one(*args)
+
+        return run_on_one
     mesh = Mesh(np.asarray(devices), ("members",))
     split = jax.jit(jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec("members"),
                                   out_specs=PartitionSpec("members"), check_vma=False))
     sharding = NamedSharding(mesh, PartitionSpec("members"))
 
     def run(*args):
-        count = jax.tree.leaves(args)[0].shape[0]
+        count = _member_count(args)
         padded = -(-count // len(devices)) * len(devices)
 
         def pad(x):
@@ -74,3 +80,20 @@ def map_members(fn: Callable, devices=None) -> Callable:
         return jax.tree.map(lambda y: y[:count], out)
 
     return run
+
+
+def _member_count(args) -> int:
+    """The members' count, the leading axis every argument leaf shares; a clear error if
+    there is none, it is empty, or the leaves disagree."""
+    leaves = jax.tree.leaves(args)
+    if not leaves or any(jnp.ndim(x) == 0 for x in leaves):
+        raise ValueError("map_members: every argument needs a leading member axis [B, ...]; "
+                         "got a scalar or no array.")
+    counts = {jnp.shape(x)[0] for x in leaves}
+    if len(counts) != 1:
+        raise ValueError(f"map_members: the arguments' leading (member) axes differ: "
+                         f"{sorted(counts)}.")
+    count = counts.pop()
+    if count == 0:
+        raise ValueError("map_members: no members (the leading axis is empty).")
+    return count

@@ -10,6 +10,9 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+import jaxtube as jt
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -57,6 +60,17 @@ def test_members_on_one_device_equal_their_single_solves():
     assert mapped[0].shape == (3, 4)
     # Stiffer members carry more force at the same deflection (a check the test can fail).
     assert np.all(np.diff(np.asarray(mapped[0])[:, -1]) > 0)
+
+
+def test_bad_member_axes_are_named():
+    mapped = jt.map_members(lambda a, b: a + b)
+    with pytest.raises(ValueError, match=r"leading \(member\) axes differ: \[2, 3\]"):
+        mapped(np.zeros(2), np.zeros(3))
+    with pytest.raises(ValueError, match="no members"):
+        mapped(np.zeros(0), np.zeros(0))
+    with pytest.raises(ValueError, match="leading member axis"):
+        mapped(1.0, 2.0)
+    np.testing.assert_array_equal(mapped(np.arange(3.0), np.ones(3)), [1.0, 2.0, 3.0])
 
 
 def test_members_split_over_two_host_devices_equal_their_single_solves():
