@@ -68,6 +68,7 @@ from ._mechanics import configuration as configuration
 from ._mechanics import initial_state as initial_state
 from ._mechanics import reference_geometry as reference_geometry
 from ._mechanics import total_energy as total_energy
+from ._members import each_member as each_member
 from ._members import map_members as map_members
 from ._path import DrivenEquilibrium as DrivenEquilibrium
 from ._path import drive_to_dead_load as drive_to_dead_load

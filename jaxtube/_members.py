@@ -29,6 +29,24 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 
+def each_member(fn: Callable, *args, sequential: bool | None = None):
+    """``fn`` of each member along the leading axis of ``args``, inside a traced program:
+    one after another (``jax.lax.map``) on a CPU, one ``vmap`` elsewhere (module docstring:
+    a CPU gains nothing from a ``vmap`` of solves, and jaxlib 0.10.2 can deadlock in one).
+
+    Args:
+        fn: a function of one member's arguments. args: PyTrees of arrays ``[B, ...]``.
+        sequential: one after another or not; ``None``: whether JAX's default backend is
+            the CPU.
+
+    Returns ``fn``'s outputs stacked over the members ``[B, ...]``."""
+    if sequential is None:
+        sequential = jax.default_backend() == "cpu"
+    if sequential:
+        return jax.lax.map(lambda member: fn(*member), args)
+    return jax.vmap(fn)(*args)
+
+
 def map_members(fn: Callable, devices=None) -> Callable:
     """``fn`` over the leading (member) axis of its arguments, as one jitted program.
 
@@ -50,9 +68,7 @@ def map_members(fn: Callable, devices=None) -> Callable:
     on_cpu = devices[0].platform == "cpu"
 
     def local(*args):
-        if on_cpu:
-            return jax.lax.map(lambda member: fn(*member), args)
-        return jax.vmap(fn)(*args)
+        return each_member(fn, *args, sequential=on_cpu)
 
     if len(devices) == 1:
         one = jax.jit(local)

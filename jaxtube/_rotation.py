@@ -150,12 +150,11 @@ def right_jacobian(rotation_vector_: Array) -> Array:
     Jacobian; ``docs/physics.md`` section 1.5.)
     """
     angle_sq = jnp.sum(rotation_vector_ * rotation_vector_, axis=-1)
+    _, b = _rodrigues_coefficients(angle_sq)  # the exponential map's (1 - cos t) / t^2
     small = angle_sq < _SMALL_ANGLE_SQ
     safe_sq = jnp.where(small, 1.0, angle_sq)
     angle = jnp.sqrt(safe_sq)
     s = angle_sq
-    b = jnp.where(small, 0.5 - s / 24.0 + s * s / 720.0 - s * s * s / 40320.0,
-                  (1.0 - jnp.cos(angle)) / safe_sq)
     c = jnp.where(small, 1.0 / 6.0 - s / 120.0 + s * s / 5040.0 - s * s * s / 362880.0,
                   (angle - jnp.sin(angle)) / (safe_sq * angle))
     k = skew(rotation_vector_)

@@ -235,13 +235,12 @@ class CantileverRig:
     def predict(self, model: TubeModel, pressure, radius, length, deflection) -> RigPrediction:
         """All curves in one program: ``pressure, radius, length [C]``, ``deflection [C, P]``.
 
-        On a CPU the curves are solved one after another (``jax.lax.map``), elsewhere as one
-        ``vmap``. A ``vmap`` does not pay on a CPU (README, "Many solves at once"), and its
-        curves wait for each other at every point: one residual-and-Jacobian evaluation of a
-        6 x 14 design took 59-72 ms one after another against 83-94 ms as a ``vmap``
-        (2026-12-05, alternating processes, the same residuals and Jacobian to 12 digits).
+        On a CPU the curves are solved one after another, elsewhere as one ``vmap``
+        (``jaxtube.each_member``). A ``vmap`` does not pay on a CPU (README, "Many solves at
+        once"), and its curves wait for each other at every point: one residual-and-Jacobian
+        evaluation of a 6 x 14 design took 59-72 ms one after another against 83-94 ms as a
+        ``vmap`` (2026-12-05, alternating processes, the same residuals and Jacobian to 12
+        digits).
         """
-        args = tuple(jnp.asarray(x, float) for x in (pressure, radius, length, deflection))
-        if jax.default_backend() == "cpu":
-            return jax.lax.map(lambda curve: self.curve(model, *curve), args)
-        return jax.vmap(lambda *curve: self.curve(model, *curve))(*args)
+        args = (jnp.asarray(x, float) for x in (pressure, radius, length, deflection))
+        return jt.each_member(lambda *curve: self.curve(model, *curve), *args)

@@ -77,12 +77,13 @@ root curvature that only a first segment turned past the vertical could carry (`
 l_1 >= pi / 2``, ``l_1 = L / (2 n)``; the planar route) gives ``STATUS_UNREACHABLE``: both
 are "not applicable", not failures.
 
-**Batching.** All points are one ``jax.vmap`` of one jitted function, evaluated in chunks of
+**Batching.** All points are one jitted function (the planar route's a ``vmap``, the generic
+route's through ``jaxtube.each_member``: one after another on a CPU), evaluated in chunks of
 ``chunk_size`` points (bounded memory; a ``tqdm`` progress bar over the chunks). With more
 than one device (``jax.devices()``: several GPUs, forced host devices, or the hosts of
 ``jax.distributed``), each chunk is split along the point axis over a one-dimensional
 ``jax.sharding.Mesh`` by ``jax.shard_map``, each device evaluating its own points (the
-generic route on CPU devices one after another, :func:`_compiled_chunk` says why); the
+generic route's on a CPU one after another, :func:`_compiled_chunk` says why); the
 chunk size is rounded up to a multiple of the device count and the grid padded by repeating
 its last point (padding is dropped). Every point's computation is independent of the
 others, so a sharded sweep equals the single-device sweep (tests check this on 4 forced
@@ -291,34 +292,29 @@ def _generic_point(model: TubeModel, settings: SweepSettings, pressure, radius, 
 def _compiled_chunk(settings: SweepSettings, devices: tuple, route: str = "planar"):
     """One jitted program over a chunk of points, split over ``devices`` along the points.
 
-    Its first argument is the law (planar route) or the :class:`TubeModel` (generic). On
-    one device the points are one ``vmap``. On several, ``jax.shard_map`` gives each device
-    its own points (no communication: a device's while-loops run to its own points'
-    convergence), evaluated by ``vmap``, except the generic route on CPU devices, which
-    evaluates them one after another (``jax.lax.map``): there the batched dense LU of a
-    ``vmap`` (jaxlib's LAPACK kernels, 0.10.2) splits the batch over XLA's CPU thread pool
-    and waits for the pieces, and with as many devices as pool threads every thread is
-    already running a device's program, so nothing runs the pieces (a 20-segment generic
-    sweep on 2 forced host devices of a 2-core machine hung for good, 2026-12-05). One
-    after another is as fast per point on a CPU (README, "Many solves at once")."""
+    Its first argument is the law (planar route) or the :class:`TubeModel` (generic). The
+    planar route's points are one ``vmap`` (closed-form statics, which a ``vmap``
+    vectorises); the generic route's go through ``jaxtube.each_member``: one after another
+    on a CPU (a ``vmap`` of those solves does not pay there, and a ``vmap`` per device
+    deadlocked jaxlib 0.10.2's batched LU: a 20-segment generic sweep on 2 forced host
+    devices of a 2-core machine hung for good, 2026-12-05; ``jaxtube._members``), one
+    ``vmap`` elsewhere. On several devices ``jax.shard_map`` gives each its own points, with
+    no communication (a device's while-loops run to its own points' convergence)."""
     point = {"planar": _planar_point, "generic": _generic_point}[route]
 
-    def batched(model, pressure, radius, length, tip_load):
-        return jax.vmap(functools.partial(point, model, settings))(pressure, radius, length,
-                                                                   tip_load)
-
-    def one_after_another(model, pressure, radius, length, tip_load):
-        return jax.lax.map(lambda args: point(model, settings, *args),
-                           (pressure, radius, length, tip_load))
+    def chunk(model, pressure, radius, length, tip_load):
+        one = functools.partial(point, model, settings)
+        if route == "generic":
+            return jt.each_member(one, pressure, radius, length, tip_load,
+                                  sequential=devices[0].platform == "cpu")
+        return jax.vmap(one)(pressure, radius, length, tip_load)
 
     if len(devices) == 1:
-        return jax.jit(batched), None
-    local = (one_after_another if route == "generic" and devices[0].platform == "cpu"
-             else batched)
+        return jax.jit(chunk), None
     mesh = Mesh(np.asarray(devices), ("points",))
     points = NamedSharding(mesh, PartitionSpec("points"))
     replicated = NamedSharding(mesh, PartitionSpec())
-    split = jax.shard_map(local, mesh=mesh, in_specs=(PartitionSpec(),) + (
+    split = jax.shard_map(chunk, mesh=mesh, in_specs=(PartitionSpec(),) + (
         PartitionSpec("points"),) * 4, out_specs=PartitionSpec("points"), check_vma=False)
     return jax.jit(split, in_shardings=(replicated, points, points, points, points),
                    out_shardings=points), points
