@@ -108,3 +108,26 @@ from ._structure import straight_tube as straight_tube
 from ._units import UNITS as UNITS
 from ._units import unit_factor as unit_factor
 from ._version import __version__ as __version__
+
+#: Every public name of the engine (the API reference is generated from this list).
+__all__ = [
+    "enable_compilation_cache", "disable_traced_program_store", "enable_traced_program_store",
+    "stored_jit", "DisplacementControl", "ForceControl", "scale_loads", "Solution",
+    "check_converged", "equilibrium", "ElementParameters", "ElementTopology", "FixedPoint",
+    "Line", "PointMass", "PointNode", "Pulley", "KiteFemImport", "hang_kite", "hang_program",
+    "hang_until_converged", "import_kite_fem", "restart_from", "scale_gravity_and_loads",
+    "undeformed_start", "write_positions_csv", "KiteFemFormatError", "KiteFemModel",
+    "read_kite_fem", "read_kite_fem_positions", "kite_fem_line_table",
+    "kite_fem_reference_positions", "weight_and_reactions", "AbstractMomentLaw",
+    "CurvatureScaledLaw", "ScaledLaw", "EmpiricalBendingLaw2011", "EmpiricalTorsionLaw2011",
+    "LinearLaw", "ReinforcedLaw", "SplineLaw", "TensionFieldLaw", "Configuration",
+    "configuration", "initial_state", "reference_geometry", "total_energy", "each_member",
+    "map_members", "DrivenEquilibrium", "drive_to_dead_load", "node_dead_load", "solve_path",
+    "with_node_dead_load", "deformed_shape_figure", "force_deflection_figure", "Problem",
+    "ProblemReport", "rotation_matrix", "rotation_vector", "RESULT_MESSAGES", "RESULTS",
+    "EquilibriumResult", "NewtonKKT", "solve_equilibrium", "result_messages", "LoadedSpec",
+    "SpecError", "load_spec", "Connection", "SpringJointTopology", "Strut", "Structure",
+    "StructureParameters", "Support", "Tube", "TubeKite", "arc_through_tips", "arc_tube",
+    "build_structure", "cantilever", "double_taper", "polyline_tube", "straight_tube", "UNITS",
+    "unit_factor",
+]

@@ -92,8 +92,8 @@ def deformed_shape_figure(
         converged: ``[K]`` bool. The last converged step is drawn in full, with up to
             ``intermediate`` earlier converged steps faded; if no step converged, only the
             undeformed shape is drawn.
-        joint_node: ``[J]`` node index of each spring joint; joint_regime: ``[K, J]``
-            regimes, used to colour the joints of the drawn step.
+        joint_node: ``[J]`` node index of each spring joint.
+        joint_regime: ``[K, J]`` regimes, used to colour the joints of the drawn step.
         point_force: ``[K, N, 3]`` applied point forces [N] (drawn as blue arrows at the
             drawn step).
         control: optional ``(node, direction [3], force [K])``: the displacement actuator,
@@ -101,10 +101,12 @@ def deformed_shape_figure(
         distributed: ``[K, T, 3]`` distributed load per tube [N/m] (line load plus
             self-weight), drawn as small teal arrows at the segment midpoints of the drawn
             step, scaled on their own.
-        line_taut, pulley_taut: ``[K, L]``, ``[K, Q]`` bool: the state of each line and
-            pulley rope. A structure with point nodes, lines, pulleys or masses has them
-            drawn at the drawn step (``jaxtube._plot_elements``); node arrays then hold every
-            node (tube nodes, then point nodes). point_mass: ``[M]`` [kg] sizes the masses.
+        line_taut: ``[K, L]`` bool: the state of each line. A structure with point nodes,
+            lines, pulleys or masses has them drawn at the drawn step
+            (``jaxtube._plot_elements``); node arrays then hold every node (tube nodes, then
+            point nodes).
+        pulley_taut: ``[K, Q]`` bool: the state of each pulley rope.
+        point_mass: ``[M]`` [kg] sizes the masses.
         gravity: ``[3]``; when it points along +z the z axis is turned so that it points
             down on the page (a kite hung in kite_fem's frame).
     """

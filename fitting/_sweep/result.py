@@ -78,9 +78,10 @@ class SweepResult(eqx.Module):
             load.
         iterations: Newton steps of all solves of the point (planar route: of the fixed
             steps, those that started from a residual above ``planar_tolerance``).
-        settings: the :class:`SweepSettings`; devices: devices the grid was sharded over;
-        seconds: wall time of the evaluation (with compilation); route: ``"planar"`` or
-        ``"generic"`` (module docstring).
+        settings: the :class:`SweepSettings`.
+        devices: devices the grid was sharded over.
+        seconds: wall time of the evaluation (with compilation).
+        route: ``"planar"`` or ``"generic"`` (module docstring).
     """
 
     pressure: np.ndarray

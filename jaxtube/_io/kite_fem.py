@@ -125,8 +125,9 @@ def import_kite_fem(
     Args:
         model: a :class:`KiteFemModel` or the path of a kite_fem ``initial.npz``.
         pressure_bar: tube overpressure [bar] for every tube; ``None`` keeps the file's.
-        bending_law, torsion_law: tube laws; default Breukels' 2011 empirical laws
-            (``EmpiricalBendingLaw2011``, ``EmpiricalTorsionLaw2011``).
+        bending_law: the tubes' bending law; default Breukels' 2011 empirical law
+            (``EmpiricalBendingLaw2011``).
+        torsion_law: the tubes' torsion law; default ``EmpiricalTorsionLaw2011``.
         bending_scale: if given, the bending law becomes ``ScaledLaw(law, bending_scale)``.
         suspension: kite_fem nodes held fixed in space (the V3 test: 82 and 116).
         gravity: gravitational acceleration ``[3]`` [m/s^2] (kite_fem's frame: +z).

@@ -290,10 +290,12 @@ class SplineLaw(AbstractMomentLaw):
         """Law whose pivots at `(reference_pressure [Pa], reference_radius [m])` are given.
 
         Arguments:
-            curvatures, moments: pivot coordinates, shape (K,), K = sum(pivots_per_regime),
-                positive and strictly increasing ([1/m] and [N m]).
-            curvature_exponent, moment_exponent: scalars or shape (K,); the exponents of
-                `p r^3` (paper form) or of `p` (separate form).
+            curvatures: pivot curvatures, shape (K,), K = sum(pivots_per_regime), positive
+                and strictly increasing [1/m].
+            moments: pivot moments, shape (K,), positive and strictly increasing [N m].
+            curvature_exponent: scalar or shape (K,); the exponent of the curvatures in
+                `p r^3` (paper form) or in `p` (separate form).
+            moment_exponent: scalar or shape (K,); the same for the moments.
             radius_exponents: `None` for the paper form, or the pair
                 `(curvature_radius_exponent, moment_radius_exponent)` (scalars or (K,)) for
                 the separate form.
