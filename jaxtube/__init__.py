@@ -6,13 +6,13 @@ equilibrium is found by constrained Newton energy minimisation, and differentiat
 implicit function theorem.
 
 Float64: Newton tolerances need double precision, so importing jaxtube turns on
-``jax_enable_x64`` (documented in the README). Set the environment variable
+``jax_enable_x64`` (docs/further/developer.md, "Float64"). Set the environment variable
 ``JAXTUBE_NO_X64=1`` to keep JAX's default; solves then raise a clear ``TypeError``
 instead of silently failing in float32.
 
 Threads: importing jaxtube before JAX has started selects single-threaded XLA CPU kernels
 (``--xla_cpu_multi_thread_eigen=false`` in ``XLA_FLAGS``) unless ``XLA_FLAGS`` already sets
-that flag or ``JAXTUBE_XLA_THREADS=1`` (README, "Threads").
+that flag or ``JAXTUBE_XLA_THREADS=1`` (docs/further/developer.md, "Threads").
 
 Whole kites (issue 14): point nodes (``PointNode``, ``FixedPoint``), tension-only lines
 (``Line``), ropes over pulleys (``Pulley``) and lumped masses (``PointMass``) join tubes in

@@ -1,21 +1,22 @@
 """Import-time settings of JAX that jaxtube needs, applied once, before anything runs on JAX.
 
 Threads: single-threaded XLA CPU (Eigen) kernels unless the user chose: this package's
-programs are many small dense operations, for which intra-op threads only add contention;
-on 2-core machines the default threads made kite solves 16x and diagnoses ~4x slower
-(README, "Threads"). XLA reads the flag when its CPU backend starts, so it takes effect
-only if JAX has not run anything yet. Opt out with ``JAXTUBE_XLA_THREADS=1``, or set
-``--xla_cpu_multi_thread_eigen`` in ``XLA_FLAGS`` yourself.
+programs are many small dense operations, for which intra-op threads only add contention; on
+2-core machines the default threads made kite solves 16x and diagnoses ~4x slower
+(docs/further/developer.md, "Threads"). XLA reads the flag when its CPU backend starts, so
+it takes effect only if JAX has not run anything yet. Opt out with
+``JAXTUBE_XLA_THREADS=1``, or set ``--xla_cpu_multi_thread_eigen`` in ``XLA_FLAGS``
+yourself.
 
 Float64: Newton tolerances need double precision, so ``jax_enable_x64`` is turned on
-(README, "Float64"). ``JAXTUBE_NO_X64=1`` keeps JAX's default; solves then raise a clear
-``TypeError`` instead of silently failing in float32.
+(docs/further/developer.md, "Float64"). ``JAXTUBE_NO_X64=1`` keeps JAX's default; solves
+then raise a clear ``TypeError`` instead of silently failing in float32.
 
 CPU devices: ``JAXTUBE_CPU_DEVICES=N`` (or ``auto``: the CPUs this process may run on) adds
 ``--xla_force_host_platform_device_count=N`` unless ``XLA_FLAGS`` already sets it, so that
-``jaxtube.map_members`` can split independent solves over the cores (README, "Many solves at
-once"). Off by default: with several devices ``fitting.sweep`` and anything else that
-shards over ``jax.devices()`` use them all.
+``jaxtube.map_members`` can split independent solves over the cores (docs/guides/solver.md,
+"Many solves at once"). Off by default: with several devices ``fitting.sweep`` and anything
+else that shards over ``jax.devices()`` use them all.
 
 ``jaxtube/__init__.py`` imports this module first, so the settings hold before any other
 jaxtube module imports JAX.

@@ -4,19 +4,20 @@
 costs about the same per member batched as alone (204 us alone, 193-245 us per member in
 batches of 64-256, ``experiments/profile_batch_pieces.py``), so a batch only adds the
 lockstep of its members' while-loops (1,000 curves: 55-58 s batched, 33-39 s as a Python
-loop of single curves, README "Performance"). What does pay on a CPU is its cores: the
+loop of single curves, docs/performance.md). What does pay on a CPU is its cores: the
 members split over devices (``jax.shard_map``, no communication between devices, each
 running its own members to their own convergence) and, on each CPU device, solved one after
 another inside the program (``jax.lax.map``: no dispatch per member, no lockstep). On other
 devices (GPUs) each device's members are one ``vmap``, which fills their lanes.
 
 Several CPU devices in one process come from XLA's flag
-``--xla_force_host_platform_device_count=N`` in ``XLA_FLAGS``, set before JAX starts (see the
-README, "Many solves at once"). One after another on CPU devices is also what keeps jaxlib
-0.10.2 from a deadlock: the batched LU of a ``vmap`` of dense-route solves splits its batch
-over XLA's CPU thread pool and waits for the pieces, and when every pool thread runs a
-device's program nothing runs them (found 2026-12-05 with ``gdb``: ``lapack_dgetrf_ffi`` ->
-``ParallelBatchMap`` -> ``BlockingCounter::Wait`` on both pool threads).
+``--xla_force_host_platform_device_count=N`` in ``XLA_FLAGS``, set before JAX starts (see
+docs/guides/solver.md, "Many solves at once"). One after another on CPU devices is also what
+keeps jaxlib 0.10.2 from a deadlock: the batched LU of a ``vmap`` of dense-route solves
+splits its batch over XLA's CPU thread pool and waits for the pieces, and when every pool
+thread runs a device's program nothing runs them (found 2026-12-05 with ``gdb``:
+``lapack_dgetrf_ffi`` -> ``ParallelBatchMap`` -> ``BlockingCounter::Wait`` on both pool
+threads).
 """
 
 from __future__ import annotations

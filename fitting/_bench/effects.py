@@ -23,7 +23,7 @@ Built-in effects (names as the diagnosis reports them):
   measured deflections stay zeroed at the unloaded (self-weighted) shape.
 
 A new effect is a subclass with its fields, ``name``, ``parameters`` and ``apply``; see
-the README for a worked example.
+docs/guides/effects.md for a worked example.
 """
 
 from __future__ import annotations

@@ -465,7 +465,8 @@ def solve_equilibrium(
             the Jacobian of the constraints; it is used for the linear systems only.
 
     Works under ``jit``, ``vmap`` (each member reports its own convergence), ``grad`` and
-    ``jvp``. Requires float64 (see the README): float32 cannot reach Newton tolerances.
+    ``jvp``. Requires float64 (docs/further/developer.md, "Float64"): float32 cannot reach
+    Newton tolerances.
     """
     z0, unravel = ravel_pytree(initial_state)
     if z0.dtype != jnp.float64:

@@ -4,7 +4,7 @@
 returns one of its items as an integer code, and the workbench's own outcomes (sweep statuses,
 the planar route, fit convergence) are enumerations that *derive* from it (``class
 SweepStatus(RESULTS)``), so a solver code keeps its meaning wherever it travels. The integer
-codes below are the ones the README documents and must not change order:
+codes below are the ones the documentation names and must not change order:
 
     0 converged, 1 Newton step cap, 2 line search failed, 3 non-finite values.
 """
