@@ -31,3 +31,15 @@ def test_every_package_has_a_reference_page():
     pages = " ".join(p.read_text() for p in (ROOT / "docs" / "reference").glob("*.md"))
     for package in PACKAGES:
         assert f"<!-- reference: {package} -->" in pages
+
+
+def test_readme_is_short_and_its_links_resolve():
+    """The front page stays a front page (issue 35: at most 200 lines), and every relative
+    link or image of it names a file of the repository (MkDocs checks the site's own)."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 200
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    relative = [t for t in targets if "://" not in t]
+    assert relative, "no relative links found: the pattern no longer matches the README"
+    missing = [t for t in relative if not (ROOT / t).exists()]
+    assert not missing, f"README.md links to missing files: {missing}"
