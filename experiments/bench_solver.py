@@ -7,10 +7,9 @@ the tension-field law with E t = 150 kN/m; Breukels & Ockels 2008):
 - (b) a 50-step displacement-controlled curve through collapse, ``jt.solve_path``;
 - (c) ``jax.vmap`` of such curves over a pressure x radius grid (0.1-0.5 bar x 50-100 mm),
   against a Python loop of the single curve over the same members in the same run, for the
-  default solver and ``NewtonKKT(globalisation="fixed_trials")`` with the dense and the sparse
-  KKT route, and ``jt.map_members`` of the default solver's curve (the members split over
-  the process's devices, ``--cpu-devices N``, and solved one after another on each:
-  ``batch_case.py``); ``--batch-only`` runs (c) alone;
+  default solver with the dense and the sparse KKT route, and ``jt.map_members`` of the
+  default solver's curve (the members split over the process's devices, ``--cpu-devices N``,
+  and solved one after another on each: ``batch_case.py``); ``--batch-only`` runs (c) alone;
 - a straightforward ``scipy.optimize.minimize(method="SLSQP")`` implementation of the same
   energy in numpy (finite-difference gradients, displacement control as an equality
   constraint), timed in the same process, as the baseline of (b).
@@ -317,7 +316,7 @@ def scipy_curve(model: NumpyCantilever, displacements, direction):
 # The cases
 # --------------------------------------------------------------------------------------------
 
-DEFAULT_SETTING = "backtracking, dense"  # what jt.NewtonKKT() does on this 67-unknown system
+DEFAULT_SETTING = "dense"  # what jt.NewtonKKT() does on this 67-unknown system
 
 
 def batch_case_report(report, structure, params, control, batch, repeats):
