@@ -18,9 +18,9 @@ Then a short profile of one Newton iteration (energy, gradient, Hessian, the KKT
 
 This is a script, not a test. Run from the repository root::
 
-    python experiments/bench_solver.py            # full mode, a few minutes
-    python experiments/bench_solver.py --quick    # fewer repeats, tiny batch (CI)
-    python experiments/bench_solver.py --batch-only --batch 32 --cpu-devices 2 \
+    python -m experiments.bench_solver            # full mode, a few minutes
+    python -m experiments.bench_solver --quick    # fewer repeats, tiny batch (CI)
+    python -m experiments.bench_solver --batch-only --batch 32 --cpu-devices 2 \
         --out experiments/results/bench_solver_batch.txt
 
 The output is printed and written to ``experiments/results/bench_solver.txt`` (``--out``).
@@ -47,25 +47,21 @@ import numpy as np
 if "--cpu-devices" in sys.argv:  # read by jaxtube at import, before JAX starts
     os.environ["JAXTUBE_CPU_DEVICES"] = sys.argv[sys.argv.index("--cpu-devices") + 1]
 
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import scipy
 import scipy.optimize
-from batch_case import measure_batches
 from jax.flatten_util import ravel_pytree
+
+import jaxtube as jt
 
 # Only for the what-if in the profile (3x3 products swapped for jnp.matmul, then restored).
 import jaxtube._mechanics.energy as _energy
 import jaxtube._mechanics.hessian as _hessian
 import jaxtube._mechanics.kinematics as _kinematics
 import jaxtube._rotation as _rotation
+from experiments.batch_case import measure_batches
 
 # --------------------------------------------------------------------------------------------
 # The problem

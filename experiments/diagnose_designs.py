@@ -12,8 +12,8 @@ no physical effect; the final RMSE is within 1.3x the generating floor. Writes
 load) after the runs already recorded there, never in their place, so rows of designs this
 run did not make are kept; a design's report is replaced only when it is run.
 
-    python experiments/diagnose_designs.py                 # all designs
-    python experiments/diagnose_designs.py --only tf_shear tf_none_four_curves
+    python -m experiments.diagnose_designs                 # all designs
+    python -m experiments.diagnose_designs --only tf_shear tf_none_four_curves
 """
 
 import argparse

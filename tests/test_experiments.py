@@ -27,7 +27,7 @@ def test_script_runs_quick_and_writes_its_figure(script, tmp_path, cache):
     figure = tmp_path / f"{script}.png"
     env = dict(os.environ, PYTHONPATH=str(REPO), JAX_COMPILATION_CACHE_DIR=str(cache),
                JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0", MPLBACKEND="Agg")
-    done = subprocess.run([sys.executable, str(REPO / "experiments" / f"{script}.py"),
+    done = subprocess.run([sys.executable, "-m", f"experiments.{script}",
                            "--quick", "--out", str(figure)], env=env, cwd=REPO,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
