@@ -1,6 +1,9 @@
 """The one table reader: the same messages for every file the workbench reads, and marker or
 node coordinates that are finite and at most 1 km (no ``Infinity`` reaches a score file)."""
 
+import re
+from pathlib import Path
+
 import pytest
 
 import fitting
@@ -96,3 +99,12 @@ def test_score_shape_refuses_a_far_marker_and_writes_nothing(tmp_path, capsys):
     assert code == 2 and not out.exists()
     assert f"{tmp_path / 'markers.csv'}:2: column 'x_m': expected a coordinate" in \
         capsys.readouterr().err
+
+
+def test_every_csv_the_workbench_reads_goes_through_the_one_reader():
+    """No other CSV parser in the packages: one set of messages for every table file."""
+    root = Path(fitting.__file__).parents[1]
+    readers = [str(path.relative_to(root)) for package in ("fitting", "jaxtube")
+               for path in (root / package).rglob("*.py")
+               if re.search(r"csv\.(reader|DictReader)|loadtxt|genfromtxt", path.read_text())]
+    assert readers == ["fitting/_tables.py"]
