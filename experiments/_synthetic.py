@@ -13,20 +13,15 @@ the script runs and writes its figure, not the quality of the fit.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 from pathlib import Path
 
 import jax
 import numpy as np
 
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import fitting
+import jaxtube as jt
+from experiments.make_calibration_data import write_noisy_curves
 from fitting import continuum
 
 HERE = Path(__file__).resolve().parent
@@ -59,9 +54,6 @@ def measured(curves, noise_fraction: float = 0.015, seed: int = 7) -> fitting.Me
     """Noisy measurement data from ``(name, p_bar, r, L, deflections, loads)`` curves: noise
     of ``noise_fraction`` of the largest force and 0.05 mm, written as a measurement CSV and
     read back with :func:`fitting.load_measurements` (the route of real data)."""
-    sys.path.insert(0, str(HERE))
-    from make_calibration_data import write_noisy_curves
-
     rng = np.random.default_rng(seed)
     noise = noise_fraction * max(float(c[5][-1]) for c in curves)
     with tempfile.TemporaryDirectory() as folder:

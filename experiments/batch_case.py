@@ -1,7 +1,7 @@
 """Case (c) of ``bench_solver.py``: ``jax.vmap`` of displacement-controlled curves against a
 Python loop of single curves, for each solver setting, in the same process.
 
-For every setting (``NewtonKKT`` globalisation and linear solver) two programs are compiled:
+For every setting (``NewtonKKT`` linear solver, or ``jt.map_members``) two programs are compiled:
 the curve under ``vmap`` over a batch of grid members (for ``MAP_MEMBERS``: under
 ``jt.map_members``, over every device of the process), and the single curve. Each repeat
 runs, interleaved over the settings, the batch once and a Python loop of the single curve
@@ -22,9 +22,8 @@ import numpy as np
 import jaxtube as jt
 
 SETTINGS = {
-    "backtracking, dense": jt.NewtonKKT(linear_solver="dense"),
-    "fixed_trials, dense": jt.NewtonKKT(globalisation="fixed_trials", linear_solver="dense"),
-    "fixed_trials, sparse": jt.NewtonKKT(globalisation="fixed_trials", linear_solver="sparse"),
+    "dense": jt.NewtonKKT(linear_solver="dense"),
+    "sparse": jt.NewtonKKT(linear_solver="sparse"),
 }
 #: Not a ``vmap``: ``jt.map_members`` of the default solver's curve, the members split over
 #: every device of the process (``--cpu-devices``) and solved one after another on each.

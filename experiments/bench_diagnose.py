@@ -9,8 +9,8 @@ bending law with the same compiled model (all candidates held at their null valu
 prints medians, the ratio of the diagnosis to that fit, the number of fits and residual-and-
 Jacobian evaluations, and writes ``experiments/results/bench_diagnose.txt``.
 
-    python experiments/bench_diagnose.py            # demo data (6 x 14) and shared (6 x 25)
-    python experiments/bench_diagnose.py --repeats 1 --only demo
+    python -m experiments.bench_diagnose            # demo data (6 x 14) and shared (6 x 25)
+    python -m experiments.bench_diagnose --repeats 1 --only demo
 """
 
 import argparse

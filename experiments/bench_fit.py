@@ -10,9 +10,9 @@ optimiser iterations and the equilibrium curve solves. Targets (issue 3): <= 10 
 
 This is a script, not a test::
 
-    python experiments/bench_fit.py            # default pivots and (2, 2, 1)
-    python experiments/bench_fit.py --quick    # default pivots only, one warm repeat
-    python experiments/bench_fit.py --quick --effect shear   # the model with the effect the
+    python -m experiments.bench_fit            # default pivots and (2, 2, 1)
+    python -m experiments.bench_fit --quick    # default pivots only, one warm repeat
+    python -m experiments.bench_fit --quick --effect shear   # the model with the effect the
                                                              # data hide (issue 13's row)
 
 Output is printed and written to ``experiments/results/bench_fit.txt``.
@@ -24,17 +24,15 @@ import argparse
 import datetime
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
+import jax
+import numpy as np
+
+import fitting as ft
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import jax  # noqa: E402
-import numpy as np  # noqa: E402
-
-import fitting as ft  # noqa: E402
 
 DATA = ROOT / "tests" / "data" / "cantilever_shear.csv"
 

@@ -9,15 +9,15 @@ tension-field tube, E t = 150 kN/m. Baseline, in the same process: the leading e
 
 This is a script, not a test. Run from the repository root::
 
-    python experiments/bench_kite.py            # 5 repeats
-    python experiments/bench_kite.py --quick    # 2 repeats
+    python -m experiments.bench_kite            # 5 repeats
+    python -m experiments.bench_kite --quick    # 2 repeats
 
 On a shared 2-core machine, multi-threaded BLAS and Eigen oversubscribe the cores and the
 dense KKT solve slows down many times; single-threaded runs are measured with::
 
     OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 \
     XLA_FLAGS="--xla_cpu_multi_thread_eigen=false" \
-    python experiments/bench_kite.py
+    python -m experiments.bench_kite
 
 Writes ``experiments/results/bench_kite.txt`` (``--out``). Timings are medians of warm
 (compiled) calls; compile times come from ``jax.jit(f).lower(...).compile()``.
@@ -31,18 +31,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import jax
 import jax.numpy as jnp
-from bench_solver import Report, load_text, time_warm
+import numpy as np
+
+import jaxtube as jt
+from experiments.bench_solver import Report, load_text, time_warm
 
 SEGMENTS = 20
 STRUTS = 6

@@ -30,7 +30,7 @@ Measured, each route compiled separately with ``NewtonKKT(linear_solver=...)``:
 Target: the sparse Newton step at least 10x faster than the dense one. Run from the
 repository root::
 
-    python experiments/bench_kkt.py [--quick] [--scaling]
+    python -m experiments.bench_kkt [--quick] [--scaling]
 
 Writes ``experiments/results/bench_kkt.txt`` (``--out``).
 """
@@ -43,20 +43,13 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import jax
 import jax.numpy as jnp
-from bench_solver import Report, load_text, time_warm
+import numpy as np
 from jax.flatten_util import ravel_pytree
 
+import jaxtube as jt
+from experiments.bench_solver import Report, load_text, time_warm
 from jaxtube._mechanics import reference_geometry
 from jaxtube._solver.kkt_linear import DenseKKT, SparseKKT
 

@@ -7,10 +7,9 @@ the tension-field law with E t = 150 kN/m; Breukels & Ockels 2008):
 - (b) a 50-step displacement-controlled curve through collapse, ``jt.solve_path``;
 - (c) ``jax.vmap`` of such curves over a pressure x radius grid (0.1-0.5 bar x 50-100 mm),
   against a Python loop of the single curve over the same members in the same run, for the
-  default solver and ``NewtonKKT(globalisation="fixed_trials")`` with the dense and the sparse
-  KKT route, and ``jt.map_members`` of the default solver's curve (the members split over
-  the process's devices, ``--cpu-devices N``, and solved one after another on each:
-  ``batch_case.py``); ``--batch-only`` runs (c) alone;
+  default solver with the dense and the sparse KKT route, and ``jt.map_members`` of the
+  default solver's curve (the members split over the process's devices, ``--cpu-devices N``,
+  and solved one after another on each: ``batch_case.py``); ``--batch-only`` runs (c) alone;
 - a straightforward ``scipy.optimize.minimize(method="SLSQP")`` implementation of the same
   energy in numpy (finite-difference gradients, displacement control as an equality
   constraint), timed in the same process, as the baseline of (b).
@@ -19,9 +18,9 @@ Then a short profile of one Newton iteration (energy, gradient, Hessian, the KKT
 
 This is a script, not a test. Run from the repository root::
 
-    python experiments/bench_solver.py            # full mode, a few minutes
-    python experiments/bench_solver.py --quick    # fewer repeats, tiny batch (CI)
-    python experiments/bench_solver.py --batch-only --batch 32 --cpu-devices 2 \
+    python -m experiments.bench_solver            # full mode, a few minutes
+    python -m experiments.bench_solver --quick    # fewer repeats, tiny batch (CI)
+    python -m experiments.bench_solver --batch-only --batch 32 --cpu-devices 2 \
         --out experiments/results/bench_solver_batch.txt
 
 The output is printed and written to ``experiments/results/bench_solver.txt`` (``--out``).
@@ -48,25 +47,21 @@ import numpy as np
 if "--cpu-devices" in sys.argv:  # read by jaxtube at import, before JAX starts
     os.environ["JAXTUBE_CPU_DEVICES"] = sys.argv[sys.argv.index("--cpu-devices") + 1]
 
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import scipy
 import scipy.optimize
-from batch_case import measure_batches
 from jax.flatten_util import ravel_pytree
+
+import jaxtube as jt
 
 # Only for the what-if in the profile (3x3 products swapped for jnp.matmul, then restored).
 import jaxtube._mechanics.energy as _energy
 import jaxtube._mechanics.hessian as _hessian
 import jaxtube._mechanics.kinematics as _kinematics
 import jaxtube._rotation as _rotation
+from experiments.batch_case import measure_batches
 
 # --------------------------------------------------------------------------------------------
 # The problem
@@ -317,7 +312,7 @@ def scipy_curve(model: NumpyCantilever, displacements, direction):
 # The cases
 # --------------------------------------------------------------------------------------------
 
-DEFAULT_SETTING = "backtracking, dense"  # what jt.NewtonKKT() does on this 67-unknown system
+DEFAULT_SETTING = "dense"  # what jt.NewtonKKT() does on this 67-unknown system
 
 
 def batch_case_report(report, structure, params, control, batch, repeats):

@@ -16,8 +16,8 @@ second, and two baselines in the same process:
 The XLA CPU kernels are single-threaded (as in the tests; set before JAX starts). The
 machine may be shared: the load average at the start and after each phase is printed.
 
-    python experiments/bench_sweep.py            # 3 warm repeats, 2 generic chunks
-    python experiments/bench_sweep.py --quick    # 1 warm repeat, 1 generic chunk
+    python -m experiments.bench_sweep            # 3 warm repeats, 2 generic chunks
+    python -m experiments.bench_sweep --quick    # 1 warm repeat, 1 generic chunk
 
 Results are printed and written to ``experiments/results/bench_sweep.txt`` (``--out``).
 """
@@ -34,23 +34,16 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import functools  # noqa: E402
 import platform  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
 
 import equinox as eqx  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
 
 import fitting  # noqa: E402
+import jaxtube as jt  # noqa: E402
 from fitting._bench.rig import TubeModel  # noqa: E402
 from fitting._sweep.status import STATUS_MOMENT_MISSED, STATUS_SOLVER_FAILED  # noqa: E402
 from fitting._sweep.sweep import _compiled_chunk, _planar_point  # noqa: E402

@@ -11,7 +11,7 @@ In full mode the spline with the separate scaling ``A p^B r^C`` is fitted too: t
 law's parameters depend on pressure and radius separately, not only through ``p r^3``, so
 the comparison shows how much of the error is the scaling form and how much the spline.
 
-    python experiments/empirical_2011_representation.py [--quick] [--out FILE.png]
+    python -m experiments.empirical_2011_representation [--quick] [--out FILE.png]
 """
 
 import matplotlib
@@ -19,7 +19,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import QUICK_POINTS, continuum_curve, fit, jt, measured, parser, save
+
+from experiments._synthetic import QUICK_POINTS, continuum_curve, fit, jt, measured, parser, save
 
 
 def main() -> None:

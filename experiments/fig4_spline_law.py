@@ -5,7 +5,7 @@ through the tension-field tube of Comer & Levy (``E t = 150 kN/m``) at 0.2 bar a
 r = 75 mm; the tension-field law itself is drawn for comparison, with the wrinkling moment
 ``pi p r^3 / 2`` and the collapse moment ``pi p r^3``. No measured data are involved.
 
-    python experiments/fig4_spline_law.py [--quick] [--out FILE.png]
+    python -m experiments.fig4_spline_law [--quick] [--out FILE.png]
 """
 
 import math
@@ -15,7 +15,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import jt, parser, save
+
+from experiments._synthetic import jt, parser, save
 
 PRESSURE, RADIUS, WALL = 0.2e5, 0.075, 150e3
 

@@ -7,7 +7,7 @@ B = 0.8 and 1.1), plus 1.5 % force noise; then the default calibration (``fittin
 paper form, pivots 1,1,1) fits both curves at once. The figure shows each curve's points,
 the fitted model with its 95 % band, and the true (noise-free) curve.
 
-    python experiments/fig5_7_cantilever_fits.py [--quick] [--out FILE.png]
+    python -m experiments.fig5_7_cantilever_fits [--quick] [--out FILE.png]
 """
 
 import matplotlib
@@ -15,18 +15,15 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import HERE, QUICK_POINTS, continuum_curve, fit, measured, parser, save
+
+from experiments._synthetic import QUICK_POINTS, continuum_curve, fit, measured, parser, save
+from experiments.make_calibration_data import true_law
 
 PRESSURES_BAR, RADIUS, LENGTH = (0.2, 0.4), 0.075, 1.0
 
 
 def main() -> None:
     args = parser("fig5_7_cantilever_fits", __doc__.splitlines()[0]).parse_args()
-    import sys
-
-    sys.path.insert(0, str(HERE))
-    from make_calibration_data import true_law
-
     law = true_law()
     points = QUICK_POINTS if args.quick else 15
     curves = [(f"{p:g} bar", p, RADIUS, LENGTH,

@@ -10,7 +10,7 @@ L. A pivot the fit reports as not identified (the data do not determine it: typi
 end of the collapsed extension, which force-controlled bench curves do not reach) is drawn
 dashed and says so in its title: its fitted line is not a result.
 
-    python experiments/fig6_pivot_scaling.py [--quick] [--out FILE.png]
+    python -m experiments.fig6_pivot_scaling [--quick] [--out FILE.png]
 """
 
 import matplotlib
@@ -18,17 +18,22 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import HERE, QUICK_POINTS, continuum_curve, determined, fit, measured, parser, save
 from matplotlib.ticker import NullFormatter
+
+from experiments._synthetic import (
+    QUICK_POINTS,
+    continuum_curve,
+    determined,
+    fit,
+    measured,
+    parser,
+    save,
+)
+from experiments.make_calibration_data import true_law
 
 
 def main() -> None:
     args = parser("fig6_pivot_scaling", __doc__.splitlines()[0]).parse_args()
-    import sys
-
-    sys.path.insert(0, str(HERE))
-    from make_calibration_data import true_law
-
     law = true_law()
     specimens = ([(0.2, 0.06), (0.4, 0.09)] if args.quick else
                  [(p, r) for p in (0.15, 0.3, 0.5) for r in (0.05, 0.075, 0.1)])

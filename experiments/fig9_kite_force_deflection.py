@@ -14,12 +14,11 @@ their own weight in this test, so they ride along almost rigidly and change the 
 little (full mode: peak 161 N with and without them, wrinkling from 7 mm, collapse from
 119 mm).
 
-    python experiments/fig9_kite_force_deflection.py [--quick] [--out FILE.png]
+    python -m experiments.fig9_kite_force_deflection [--quick] [--out FILE.png]
 
 Quick mode (CI): the leading edge alone, 12 segments, 12 steps.
 """
 
-import sys
 
 import matplotlib
 
@@ -28,12 +27,10 @@ import jax
 import jax.numpy as jnp
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import HERE, parser, save
 
 import jaxtube as jt
-
-sys.path.insert(0, str(HERE))
-from tube_kite import build_kite  # noqa: E402
+from experiments._synthetic import parser, save
+from experiments.tube_kite import build_kite
 
 MAX_DEFLECTION = 0.14  # m, the paper's range
 REGIME_COLOURS = ("C0", "C1", "C3")

@@ -12,7 +12,7 @@ The figure: residuals along every curve before (top left) and after (top right),
 significant); the RMSE of every curve before and after, against the noise (bottom right).
 This is what ``jaxtube demo`` computes; the figure puts the story on one page.
 
-    python experiments/hidden_effect_workflow.py [--quick] [--out FILE.png]
+    python -m experiments.hidden_effect_workflow [--quick] [--out FILE.png]
 
 Quick mode (CI): short fits (iteration caps), one addition at most; it checks that the
 script runs, not the quality of the diagnosis.
@@ -25,9 +25,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from _synthetic import parser, save
 
 import fitting
+from experiments._synthetic import parser, save
 
 HIDDEN = ("clamp_compliance", 1.0 / 1500.0)  # effect and its value [rad/(N m)]
 

@@ -11,7 +11,7 @@ each at tip loads evenly spaced up to 85 % of the law's collapse load (collapse 
 over L); Gaussian noise of 1.5 % of the largest force (force) and 0.05 mm (deflection),
 seed 7.
 
-    python experiments/make_calibration_data.py tests/data/calibration_spline.csv
+    python -m experiments.make_calibration_data tests/data/calibration_spline.csv
 """
 
 import csv

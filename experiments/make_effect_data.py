@@ -38,8 +38,8 @@ Rounded to 0.001 mm and 0.0001 N. Columns
 ``curve,setup,pressure_bar,radius_m,length_m,deflection_mm,force_N``; setup
 ``cantilever_tip``; curve names like ``p0.15-r75-L0.6``.
 
-    python experiments/make_effect_data.py               # all datasets
-    python experiments/make_effect_data.py --only shear  # one (name = file stem)
+    python -m experiments.make_effect_data               # all datasets
+    python -m experiments.make_effect_data --only shear  # one (name = file stem)
 """
 
 import argparse

@@ -19,8 +19,8 @@ Each dataset's **noise floor** is the RMSE of the noise-free truth, evaluated at
 force at the measured deflection can reach. It is written with the design to
 ``tests/data/effects/designs.json`` and in ``tests/data/effects/README.md``.
 
-    python experiments/make_hidden_effect_designs.py               # all
-    python experiments/make_hidden_effect_designs.py --only tf_shear
+    python -m experiments.make_hidden_effect_designs               # all
+    python -m experiments.make_hidden_effect_designs --only tf_shear
 """
 
 from __future__ import annotations
@@ -29,14 +29,13 @@ import argparse
 import json
 import math
 import pathlib
-import sys
 import time
 
 import numpy as np
 
+from fitting import continuum  # does not import jaxtube
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from fitting import continuum  # noqa: E402  (does not import jaxtube)
 
 WALL_MODULUS = 150e3  # E t [N/m]
 POINTS = 14

@@ -19,7 +19,7 @@ Writes ``tests/data/noise_floors.json``.
   through the noise-free points of its curve (the recorded deflections lie within 0.2 mm of
   them; the spline's error there is far below the rounding).
 
-    python experiments/noise_floors.py
+    python -m experiments.noise_floors
 """
 
 from __future__ import annotations
@@ -27,15 +27,14 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-import sys
 import time
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from fitting import continuum, load_measurements
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from fitting import continuum, load_measurements  # noqa: E402
 
 #: (file, seed, deflection noise [mm]) of the replayed datasets.
 REPLAYED = (

@@ -24,14 +24,13 @@ batch 1 it is what a loop of single solves pays per pass, and its ratio to the b
 figure is the most a batch can gain over that loop per pass (before lockstep and the line
 search's extra trials, which only lower it).
 
-    python experiments/profile_batch_pieces.py [--out experiments/results/profile_batch_pieces.txt]
+    python -m experiments.profile_batch_pieces [--out experiments/results/profile_batch_pieces.txt]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -42,11 +41,9 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 import jaxtube as jt
+from experiments import bench_solver
 from jaxtube._equilibrium import _model_hessian, _model_objective, tube_reference_geometry
 from jaxtube._mechanics.kinematics import relative_joint_rotation
-
-sys.path.insert(0, str(Path(__file__).parent))
-import bench_solver  # noqa: E402
 
 BATCHES = (1, 64, 256)
 SMALL = 1e-4  # the engine's Taylor threshold on t^2

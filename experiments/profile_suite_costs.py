@@ -16,7 +16,7 @@ Two measurements behind the README's "How long it takes, and why" (section "Two 
 
 This is a script, not a test. Run from the repository root::
 
-    python experiments/profile_suite_costs.py [--out FILE]
+    python -m experiments.profile_suite_costs [--out FILE]
 
 It prints and writes ``experiments/results/profile_suite_costs.txt``.
 """
@@ -27,21 +27,20 @@ import argparse
 import collections
 import os
 import re
-import sys
 import time
 from pathlib import Path
 
 os.environ.setdefault("JAXTUBE_NO_COMPILATION_CACHE", "1")
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxtube  # noqa: F401  (float64, threads)
+from fitting._calibrate import problem as calibration
+from fitting._data.load import load_measurements
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-import jaxtube  # noqa: E402, F401  (float64, threads)
-from fitting._calibrate import problem as calibration  # noqa: E402
-from fitting._data.load import load_measurements  # noqa: E402
 
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
@@ -104,7 +103,6 @@ def _operations_by_source_line(text: str) -> collections.Counter:
 
 
 def solver_compilation(say) -> None:
-    sys.path.insert(0, str(ROOT))
     from tests.test_sparse_kkt import CASES, _solve_and_gradient
 
     name, (structure, params), control = CASES[0]

@@ -19,7 +19,7 @@
 #
 # ``--struts 4`` adds four chordwise struts (0.3 bar) to the leading edge.
 #
-# Run from the repository root: ``python experiments/tube_kite.py [--struts 4]``.
+# Run from the repository root: ``python -m experiments.tube_kite [--struts 4]``.
 
 # %%
 from __future__ import annotations
@@ -29,16 +29,11 @@ import csv
 import sys
 from pathlib import Path
 
-import numpy as np
-
-try:
-    import jaxtube as jt
-except ModuleNotFoundError:  # run from a checkout without installing the package
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import jaxtube as jt
-
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+import jaxtube as jt
 
 PRESSURE = 2.5e4  # Pa
 WALL_MODULUS = 150e3  # E t [N/m]

@@ -165,10 +165,8 @@ def family_of(effect: str) -> str:
 
 
 def fit(effect: str, scale: float) -> dict:
-    """Bounded Brent on log of the effect's factor, the RMS of its fit case
-    (``FIT_CASE``); the minimum checked on both sides (as the calibration)."""
-    from scipy.optimize import minimize_scalar
-
+    """Bounded Brent on log of the effect's factor (``fitting.bounded_search``), the RMS of
+    its fit case (``FIT_CASE``); the minimum checked on both sides (as the calibration)."""
     index, case, family = FACTOR_INDEX[effect], FIT_CASE[effect], family_of(effect)
     history = []
 
@@ -183,22 +181,18 @@ def fit(effect: str, scale: float) -> dict:
         said = f"{row['rms_mm']:.1f} mm" if row["converged"] else "NOT CONVERGED"
         print(f"  {effect} = {np.exp(log_factor):.4f}: case {case} {said} ({row['seconds']} s)",
               file=sys.stderr, flush=True)
-        return row["rms_mm"] if row["converged"] else 1e6
+        return row["rms_mm"] if row["converged"] else None
 
-    xatol = 0.01
-    bounds = (np.log(BOUNDS[0]), np.log(BOUNDS[1]))
-    found = minimize_scalar(objective, bounds=bounds, method="bounded",
-                            options={"xatol": xatol, "maxiter": 30})
-    log_f = float(found.x)
-    h = 4 * xatol
-    minus, plus = objective(log_f - h), objective(log_f + h)
-    at_bound = bool(min(abs(log_f - bounds[0]), abs(log_f - bounds[1])) < 2 * xatol)
-    converged = bool(found.success) and not at_bound and bool(minus >= found.fun <= plus)
+    found = fitting.bounded_search(objective, (np.log(BOUNDS[0]), np.log(BOUNDS[1])),
+                                   xatol=0.01, max_evaluations=30)
+    if found.x is None:
+        raise SystemExit(f"error: fitting {effect}: {found.message}")
     return {"effect": effect, "family": family, "fitted_to_case": case,
-            "factor": float(np.exp(log_f)), "fit_case_rms_mm": float(found.fun),
-            "converged": converged, "at_bound": at_bound, "message": str(found.message),
-            "evaluations": int(found.nfev), "rms_mm_at_log_minus_plus": [minus, plus],
-            "factors": factors_at(log_f), "history": history}
+            "factor": float(np.exp(found.x)), "fit_case_rms_mm": found.value,
+            "converged": found.converged, "at_bound": found.at_bound, "message": found.message,
+            "evaluations": found.evaluations,
+            "rms_mm_at_log_minus_plus": list(found.value_minus_plus),
+            "factors": factors_at(found.x), "history": history}
 
 
 def main(argv=None) -> int:

@@ -62,6 +62,7 @@ from ._figures.plots import (
     ranking_figure,
     where_it_fails_figure,
 )
+from ._search import BoundedSearch, bounded_search
 from ._shape.files import (
     ShapeFileError,
     ShapeFileProblem,
@@ -105,6 +106,7 @@ __all__ = [
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
     "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
+    "BoundedSearch", "bounded_search",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

@@ -25,6 +25,7 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
+import pytest  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
@@ -35,3 +36,22 @@ _CACHE = Path(os.environ.get("JAXTUBE_TEST_CACHE",
                              Path(tempfile.gettempdir()) / "jaxtube-test-compilation-cache"))
 jax.config.update("jax_compilation_cache_dir", str(_CACHE))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+# The fast tier (``python -m pytest -m "not slow"``, about 3 minutes warm) leaves out these
+# files whole: each runs fits, diagnoses, subprocesses or study-sized solves, or compiles a
+# large program of its own (a minute or more warm). A single slow test elsewhere carries
+# ``@pytest.mark.slow`` itself. CI runs everything.
+SLOW_FILES = frozenset({
+    "test_diagnose_controls.py", "test_diagnose_designs.py", "test_diagnose_effects.py",
+    "test_user_effect.py", "test_notebook.py", "test_experiments.py", "test_fitting.py",
+    "test_effects.py", "test_sparse_kkt.py", "test_convergence_honesty.py",
+    "test_v3_hanging.py", "test_v3_import.py", "test_kite_fem_hang.py",
+})
+
+
+def pytest_collection_modifyitems(config, items):
+    slow = pytest.mark.slow
+    for item in items:
+        if item.path.name in SLOW_FILES:
+            item.add_marker(slow)

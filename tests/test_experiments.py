@@ -1,7 +1,9 @@
-"""Every figure script of experiments/ runs in quick mode and writes its PNG.
+"""Every figure script of experiments/ runs in quick mode (``python -m experiments.NAME``)
+and writes its PNG.
 
-The three fitting scripts share one persistent compilation cache (same quick-mode data
-shapes and model), so only the first compiles the fit.
+The scripts use the suite's persistent compilation cache (``tests/conftest.py``): the three
+fitting scripts share the fit's programs (same quick-mode data shapes and model), and a
+later run of the suite finds them all compiled.
 """
 
 import os
@@ -9,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import jax
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -17,17 +20,14 @@ SCRIPTS = ("fig4_spline_law", "fig5_7_cantilever_fits", "fig6_pivot_scaling",
            "hidden_effect_workflow")
 
 
-@pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("jax-cache")
-
-
 @pytest.mark.parametrize("script", SCRIPTS)
-def test_script_runs_quick_and_writes_its_figure(script, tmp_path, cache):
+def test_script_runs_quick_and_writes_its_figure(script, tmp_path):
     figure = tmp_path / f"{script}.png"
-    env = dict(os.environ, PYTHONPATH=str(REPO), JAX_COMPILATION_CACHE_DIR=str(cache),
-               JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0", MPLBACKEND="Agg")
-    done = subprocess.run([sys.executable, str(REPO / "experiments" / f"{script}.py"),
+    env = dict(os.environ, PYTHONPATH=str(REPO), MPLBACKEND="Agg",
+               JAX_COMPILATION_CACHE_DIR=jax.config.jax_compilation_cache_dir,
+               JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS=str(
+                   jax.config.jax_persistent_cache_min_compile_time_secs))
+    done = subprocess.run([sys.executable, "-m", f"experiments.{script}",
                            "--quick", "--out", str(figure)], env=env, cwd=REPO,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -7,7 +7,6 @@ solver) from a known paper-form spline law; see ``tests/data/README.md``.
 """
 
 import dataclasses
-import importlib.util
 import json
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import pytest
 
 import fitting as ft
 import jaxtube as jt
+from experiments import make_calibration_data
 from fitting._bench import effects as fx
 from fitting._calibrate import problem as _calibrate
 from fitting._calibrate.parameters_file import without_effects_words
@@ -26,14 +26,6 @@ from jaxtube import _stored_programs as jt_stored
 
 DATA = Path(__file__).parent / "data" / "calibration_spline.csv"
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "make_calibration_data", ROOT / "experiments" / "make_calibration_data.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +44,7 @@ def test_recovers_known_scaling_factors_within_uncertainty(data, result):
     data do not resolve (the curves stop at 85 % of the collapse load) are flagged."""
     assert result.convergence.converged, result.convergence.message
     truth = ft.PivotScaling().physical(
-        ft.PivotScaling().vector(_generator().true_law(), *result.problem.reference),
+        ft.PivotScaling().vector(make_calibration_data.true_law(), *result.problem.reference),
         *result.problem.reference)
     identified = 0
     for estimate in result.parameters:

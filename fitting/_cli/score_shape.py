@@ -29,7 +29,7 @@ import sys
 from pathlib import Path
 
 from .._shape.figure import shape_figure
-from .._shape.files import ShapeFileError, load_positions, load_triangles, load_tubes
+from .._shape.files import load_positions, load_triangles, load_tubes
 from .._shape.markers import CANOPY_GROUP, load_markers
 from .._shape.score import MARKER_CSV_COLUMNS, score_shape
 from .._shape.surfaces import TubeSurfaces
@@ -90,7 +90,7 @@ def run(args) -> int:
         options = dict(spanwise_groups=_spanwise(args.spanwise), canopy_group=args.canopy_group)
         score = score_shape(surfaces, markers, **options)
         null = None if undeformed is None else score_shape(undeformed, markers, **options)
-    except (ShapeFileError, ValueError) as error:
+    except (OSError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     scores = {"markers_file": str(args.markers), "positions_file": str(args.positions),

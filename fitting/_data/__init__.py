@@ -53,8 +53,8 @@ description and a function that checks the text after ``kind:``.
 
 from __future__ import annotations
 
+from .._tables import DataError, DataProblem
 from .curves import MeasuredCurve, MeasuredData
-from .errors import DataError, DataProblem
 from .load import load_measurements
 
 __all__ = ["DataError", "DataProblem", "MeasuredCurve", "MeasuredData", "load_measurements"]

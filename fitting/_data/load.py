@@ -1,19 +1,15 @@
-"""Reading and checking a measurement file (the format: :mod:`fitting._data`)."""
+"""Reading and checking a measurement file (the format: :mod:`fitting._data`), through the
+workbench's one table reader (:mod:`fitting._tables`)."""
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import decimal
-import io
 import math
 import os
 from pathlib import Path
 
-import jaxtube as jt
-
+from .._tables import TableReader, TableRow
 from .curves import MeasuredCurve, MeasuredData
-from .errors import DataError
 from .setups import _setup_problem
 from .units import (
     COLUMN_UNITS,
@@ -23,6 +19,8 @@ from .units import (
     accepted_columns,
     to_si,
 )
+
+_EXAMPLE_HEADER = "curve,setup,pressure_bar,radius_m,length_m,deflection_mm,force_N"
 
 
 @dataclasses.dataclass
@@ -36,22 +34,18 @@ class _Row:
     usable: bool = True
 
 
-def _parse_header(header: list[str], problem) -> list[str | None]:
+def _parse_header(reader: TableReader) -> list[str | None]:
     """Give each column its role; report header problems.
 
     Returns one role per column: ``curve``, ``setup``, ``weight``, ``note``, a quantity
-    name, or ``None`` for a column to skip (reported as a problem).
+    name, or ``None`` for a column to skip (reported as a problem, or a repeated column,
+    which the reader reports).
     """
+    header = reader.header
     roles: dict[str, str] = {}
-    seen: dict[str, int] = {}
     by_quantity: dict[str, list[str]] = {quantity: [] for quantity in QUANTITIES}
     misnamed: set[str] = set()
-    for column in header:
-        seen[column] = seen.get(column, 0) + 1
-        if seen[column] == 2:
-            problem(1, column, "expected each column once, found it more than once")
-        if seen[column] > 1:
-            continue
+    for column in dict.fromkeys(header):
         quantity, underscore, unit = column.partition("_")
         if column in ("curve", "setup") or column in OPTIONAL_COLUMNS:
             roles[column] = column
@@ -61,7 +55,7 @@ def _parse_header(header: list[str], problem) -> list[str | None]:
                 roles[column] = quantity
             else:
                 misnamed.add(quantity)  # reported here, not again as a missing column
-                problem(
+                reader.problem(
                     1, column,
                     f"unknown unit {unit!r} for {quantity}; accepted columns: "
                     f"{accepted_columns(quantity)}",
@@ -70,24 +64,22 @@ def _parse_header(header: list[str], problem) -> list[str | None]:
             expected = ", ".join(
                 ["curve", "setup"] + [f"{q}_<unit>" for q in QUANTITIES]
             )
-            problem(
+            reader.problem(
                 1, column or None,
                 f"unknown column {column!r}; expected {expected}, "
                 f"optionally {' and '.join(OPTIONAL_COLUMNS)}",
             )
-    for name in ("curve", "setup"):
-        if name not in roles:
-            problem(1, name, f"missing column {name!r}; found columns: {', '.join(header)}")
+    reader.require("curve", "setup")
     for quantity, columns in by_quantity.items():
         if not columns and quantity not in misnamed:
-            problem(
-                1, quantity,
+            reader.problem(
+                1, None,
                 f"missing column for {quantity}; expected one of "
-                f"{accepted_columns(quantity)}, found columns: {', '.join(header)}",
+                f"{accepted_columns(quantity)}, found {','.join(header)}",
             )
         elif len(columns) > 1:
             for column in columns[1:]:
-                problem(
+                reader.problem(
                     1, column,
                     f"expected exactly one column for {quantity}, found "
                     f"{', '.join(columns)}",
@@ -98,17 +90,56 @@ def _parse_header(header: list[str], problem) -> list[str | None]:
     return [roles[c] if first_index.get(c) == i else None for i, c in enumerate(header)]
 
 
-def _parse_number(text: str) -> tuple[decimal.Decimal | None, str | None]:
-    """Parse a number; return ``(value, None)`` or ``(None, what was wrong)``."""
-    if not text:
-        return None, "expected a number, found an empty field"
-    try:
-        value = decimal.Decimal(text)
-    except decimal.InvalidOperation:
-        return None, f"expected a number, found {text!r}"
-    if not value.is_finite():
-        return None, f"expected a finite number, found {text!r}"
-    return value, None
+def _read_row(reader: TableReader, table_row: TableRow, header, roles) -> _Row:
+    """The curve, setup, values and note of one row; its problems recorded."""
+    row = _Row(table_row.line)
+    cells = table_row.cells
+    if not table_row.complete:
+        # Still count the row in its curve, so that the curve checks stay truthful.
+        row.curve = cells.get("curve") or None
+        row.usable = False
+        return row
+    for column, role in zip(header, roles):
+        if role is None:
+            continue
+        cell = cells[column]
+        usable = True
+        if role == "curve":
+            row.curve = reader.name(table_row, column, "a curve name") or None
+            usable = row.curve is not None
+        elif role == "setup":
+            issue = _setup_problem(cell)
+            if issue is None:
+                row.setup = cell
+            else:
+                reader.problem(row.line, column, issue)
+                usable = False
+        elif role == "note":
+            row.note = cell
+        elif role == "weight":
+            weight = reader.number(table_row, column, check=lambda w: w > 0,
+                                   expected="a positive weight")
+            usable = math.isfinite(weight)
+            if usable:
+                row.values[role] = weight
+        else:
+            value = reader.decimal(table_row, column)
+            usable = value is not None
+            if usable:
+                number = to_si(value, role, column.partition("_")[2])
+                issue = None
+                if role in SPECIMEN_QUANTITIES and not number > 0:
+                    issue = f"expected a positive {role}, found {cell!r}"
+                elif not math.isfinite(number):
+                    issue = f"expected a finite {role}, found {cell!r} (overflows)"
+                if issue is None:
+                    row.values[role] = number
+                    row.text[role] = cell
+                else:
+                    reader.problem(row.line, column, issue)
+                    usable = False
+        row.usable = row.usable and usable
+    return row
 
 
 def load_measurements(path: str | os.PathLike) -> MeasuredData:
@@ -126,90 +157,11 @@ def load_measurements(path: str | os.PathLike) -> MeasuredData:
         OSError: if the file cannot be read.
     """
     path = Path(path)
-    source = str(path)
-    report = jt.ProblemReport(source)
-
-    def problem(line: int, column: str | None, message: str) -> None:
-        report.add("", message, line=line, column=column)
-
-    def fail() -> DataError:
-        order = {column: i for i, column in enumerate(header)} if header else {}
-        return DataError(sorted(report.problems,
-                                key=lambda p: (p.line, order.get(p.column, len(order)))))
-
-    header: list[str] = []
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        line = raw[: error.start].count(b"\n") + 1
-        problem(line, None, f"expected UTF-8 text, found byte {raw[error.start]:#04x}")
-        raise fail() from None
-    if not text.strip():
-        problem(1, None, "empty file; expected a header line such as "
-                "curve,setup,pressure_bar,radius_m,length_m,deflection_mm,force_N")
-        raise fail()
-
-    reader = csv.reader(io.StringIO(text, newline=""))
-    header = [cell.strip() for cell in next(reader)]
-    roles = _parse_header(header, problem)
-
-    rows: list[_Row] = []
-    for cells in reader:
-        line = reader.line_num
-        if not any(cell.strip() for cell in cells):
-            continue  # blank lines carry no data
-        row = _Row(line)
-        rows.append(row)
-        if len(cells) != len(header):
-            problem(line, None, f"expected {len(header)} fields as in the header, "
-                    f"found {len(cells)}")
-            row.usable = False
-            # Still count the row in its curve, so that the curve checks stay truthful.
-            if "curve" in roles and roles.index("curve") < len(cells):
-                row.curve = cells[roles.index("curve")].strip() or None
-            continue
-        for column, role, cell in zip(header, roles, cells):
-            cell = cell.strip()
-            if role is None:
-                continue
-            if role == "curve":
-                if cell:
-                    row.curve = cell
-                else:
-                    problem(line, column, "expected a curve name, found an empty field")
-                    row.usable = False
-            elif role == "setup":
-                issue = _setup_problem(cell)
-                if issue is None:
-                    row.setup = cell
-                else:
-                    problem(line, column, issue)
-                    row.usable = False
-            elif role == "note":
-                row.note = cell
-            else:
-                value, issue = _parse_number(cell)
-                if issue is None and role == "weight":
-                    number = float(value)
-                    if number > 0 and math.isfinite(number):
-                        row.values[role] = number
-                    else:
-                        issue = f"expected a positive weight, found {cell!r}"
-                elif issue is None:
-                    number = to_si(value, role, column.partition("_")[2])
-                    if role in SPECIMEN_QUANTITIES and not number > 0:
-                        issue = f"expected a positive {role}, found {cell!r}"
-                    elif not math.isfinite(number):
-                        issue = f"expected a finite {role}, found {cell!r} (overflows)"
-                    else:
-                        row.values[role] = number
-                        row.text[role] = cell
-                if issue is not None:
-                    problem(line, column, issue)
-                    row.usable = False
-    if not rows:
-        problem(2, None, "expected at least one data row after the header, found none")
+    reader = TableReader(path, "measurement", _EXAMPLE_HEADER)
+    header = reader.header
+    roles = _parse_header(reader)
+    rows = [_read_row(reader, row, header, roles) for row in reader.rows]
+    problem = reader.problem
 
     # Group by curve name, in order of first appearance.
     groups: dict[str, list[_Row]] = {}
@@ -250,8 +202,7 @@ def load_measurements(path: str | os.PathLike) -> MeasuredData:
                     f"curve {name!r} has 1 usable point (line {usable[0].line}); "
                     "expected at least 2")
 
-    if len(report):
-        raise fail()
+    reader.finish()
 
     curves = []
     for name, members in groups.items():

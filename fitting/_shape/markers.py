@@ -71,7 +71,7 @@ class MarkerSet(eqx.Module):
 
 def load_markers(path) -> MarkerSet:
     """Read a marker CSV (format in :mod:`fitting._shape.files`) into a :class:`MarkerSet`.
-    Raises :class:`fitting.ShapeFileError` naming every problem (file, line, column)."""
+    Raises :class:`fitting.DataError` naming every problem (file, line, column)."""
     table = read_marker_table(path)
     return MarkerSet(jnp.asarray(table.position), table.group, tuple(int(i) for i in table.index),
                      tuple(int(n) for n in table.line), table.source)

@@ -1,6 +1,5 @@
-"""One regularised Newton-KKT step and its second-order correction, shared by both
-globalisations of :mod:`jaxtube._solver.newton_kkt` (``"backtracking"``) and
-:mod:`jaxtube._solver.fixed_trials`.
+"""One regularised Newton-KKT step and its second-order correction, for the iteration of
+:mod:`jaxtube._solver.newton_kkt`.
 
 **The regularised step.** With Hessian ``H``, constraint Jacobian ``J``, energy gradient
 ``g`` and constraints ``c``, the step ``dz`` and the new multipliers solve::

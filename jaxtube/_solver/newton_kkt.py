@@ -57,7 +57,6 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
-from .fixed_trials import Linearisation, fixed_trials_loop
 from .kkt_augmented import AugmentedSparseKKT
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
 from .kkt_step import all_finite, first_trial_exponent, regularised_step, second_order_correction
@@ -72,10 +71,6 @@ RESULT_MESSAGES = result_messages(RESULTS)
 #: constraint) from a zero pivot: KLU stops the whole program on one (dense LU returns
 #: infinities, which the curvature test then rejects).
 MU_FLOOR = 1e-14
-
-#: ``NewtonKKT.globalisation`` settings.
-GLOBALISATIONS = ("backtracking", "fixed_trials")
-
 
 class NewtonKKT(eqx.Module):
     """Settings of the Newton solver. Tolerances are floats; counts are static.
@@ -92,13 +87,6 @@ class NewtonKKT(eqx.Module):
             and a KKT system of at least ``SPARSE_CROSSOVER`` unknowns, augmented where the
             model also gives constraint factors, else dense), ``"dense"``, ``"sparse"`` or
             ``"augmented"`` (``jaxtube._solver.kkt_linear``, ``kkt_augmented``).
-        globalisation: ``"backtracking"`` (regularisation retries and a backtracking line
-            search, nested loops inside each Newton step) or ``"fixed_trials"`` (one loop:
-            one KKT solve per pass, ``line_search_trials`` step lengths evaluated together,
-            retries carried to the next pass; the same iterates, for ``vmap`` batches:
-            ``jaxtube._solver.fixed_trials``).
-        line_search_trials: halvings of the step evaluated together per pass
-            (``"fixed_trials"`` only).
     """
 
     rtol: float = 1e-10
@@ -108,16 +96,6 @@ class NewtonKKT(eqx.Module):
     max_backtracks: int = eqx.field(static=True, default=30)
     max_regularisations: int = eqx.field(static=True, default=12)
     linear_solver: str = eqx.field(static=True, default="auto")
-    globalisation: str = eqx.field(static=True, default="backtracking")
-    line_search_trials: int = eqx.field(static=True, default=4)
-
-    def __check_init__(self):
-        if self.globalisation not in GLOBALISATIONS:
-            raise ValueError(f"NewtonKKT.globalisation must be one of {GLOBALISATIONS}, got "
-                             f"{self.globalisation!r}.")
-        if self.line_search_trials < 1:
-            raise ValueError("NewtonKKT.line_search_trials must be at least 1, got "
-                             f"{self.line_search_trials}.")
 
 
 class EquilibriumResult(eqx.Module):
@@ -250,19 +228,6 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
 
     def lagrangian_hessian(z, lam):
         return _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
-
-    if solver.globalisation == "fixed_trials":
-        def rows(z):
-            parts, c, part_grads, jacobian = linearise(z)
-            return jnp.sum(parts), c, part_grads, jacobian
-
-        problem = Linearisation(
-            rows=rows, hessian=lagrangian_hessian,
-            merit_parts=lambda z: lagrangian_and_parts(z, jnp.zeros_like(lam0))[1],
-            route=route, unless=_unless)
-        z, lam, steps, code, res_g, res_c = fixed_trials_loop(problem, solver, z0, lam0,
-                                                              MU_FLOOR)
-        return z, lam, (code == 0, steps, code, res_g, res_c)
 
     def body(carry):
         z, lam, rho, step, _, _, _, _ = carry

@@ -9,16 +9,11 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
+import tomllib
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 from .._controls import DisplacementControl, ForceControl
 from .._problems import Problem, ProblemReport
