@@ -153,7 +153,9 @@ def _animation(structure, history, times, path):
     figure = plt.figure(figsize=(4.5, 3.6))
     ax = figure.add_subplot(projection="3d")
     low, high = positions.min(axis=(0, 1)), positions.max(axis=(0, 1))
-    ax.set_box_aspect(np.maximum(high - low, 1e-3 * float((high - low).max())))
+    pad = 0.5 * np.maximum(0.02 * float((high - low).max()) - (high - low), 0.0)
+    low, high = low - pad, high + pad  # a planar motion keeps its flat axis visible
+    ax.set_box_aspect(high - low)
     ax.set_xlim(low[0], high[0])
     ax.set_ylim(low[1], high[1])
     ax.set_zlim(low[2], high[2])

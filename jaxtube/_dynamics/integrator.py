@@ -266,7 +266,7 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
 
     def one_step(carry, index):
         state, multipliers, motion = carry
-        time = (index + 1) * h
+        time = (index + 1.0) * h
         params_t = parameters_at(params, loads, support_motions, time)
         here = maximal_coordinates(structure, geometry, state)
         quarter = h**2 / 4
@@ -316,7 +316,8 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
                       result=solved.result, residual=solved.residual)
         return (solved.state, solved.multipliers, new), record
 
-    _, record = jax.lax.scan(one_step, (state, multipliers, motion), jnp.arange(steps))
+    _, record = jax.lax.scan(one_step, (state, multipliers, motion),
+                             jnp.arange(steps, dtype=float))
     return History(**record)
 
 
