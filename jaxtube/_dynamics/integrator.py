@@ -273,7 +273,6 @@ def _rest_acceleration(structure, params, geometry, state, multipliers) -> _Moti
                    joint_rotation=joints, joint_rate=jnp.zeros_like(joints))
 
 
-@eqx.filter_jit
 def simulate_dynamics(structure: Structure, params: StructureParameters, time_step,
                       steps: int, initial: Solution | None = None, loads: tuple = (),
                       support_motions: tuple = (), damping: Damping = Damping(),
@@ -294,6 +293,14 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
         load = jt.dynamic_load(structure, params, {"tube:end": [0, 0, -5]}, jt.StepFunction())
         history = jt.simulate_dynamics(structure, params, 1e-3, 1000, loads=(load,))
     """
+    # The step is an array, so that a new step size does not compile a new program.
+    return _simulate(structure, params, jnp.asarray(time_step, dtype=float), steps, initial,
+                     loads, support_motions, damping, solver)
+
+
+@eqx.filter_jit
+def _simulate(structure, params, time_step, steps, initial, loads, support_motions, damping,
+              solver) -> History:
     geometry = tube_reference_geometry(structure, params)
     h = jnp.asarray(time_step, dtype=float)
     state = initial_state(structure, params) if initial is None else initial.state
