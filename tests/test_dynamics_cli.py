@@ -14,6 +14,7 @@ from jaxtube._spec.load import parse_spec
 SPEC = "tests/data/dynamics_cantilever.toml"
 
 
+@pytest.mark.slow  # three compilations (equilibrium, modes, the time loop): ~1.5 min CPU
 def test_simulate_with_a_dynamics_table_writes_the_history(tmp_path):
     code = main(["simulate", SPEC, "--out", str(tmp_path), "--quiet"])
     assert code == 0
