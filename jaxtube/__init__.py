@@ -18,6 +18,9 @@ Whole kites (issue 14): point nodes (``PointNode``, ``FixedPoint``), tension-onl
 (``Line``), ropes over pulleys (``Pulley``) and lumped masses (``PointMass``) join tubes in
 one energy through ``build_structure(..., points=, lines=, pulleys=, point_masses=)``; the
 API summary is the docstring of ``jaxtube._elements``.
+
+Dynamics (issue 37): ``modes`` (natural modes at an equilibrium) and ``simulate_dynamics``
+(implicit Newmark on SO(3), each step a Newton-KKT solve); ``docs/dynamics.md``.
 """
 
 from . import _config  # noqa: F401, I001  (first: XLA_FLAGS and float64 before JAX runs)
@@ -31,6 +34,22 @@ from ._controls import scale_loads as scale_loads
 from ._equilibrium import Solution as Solution
 from ._equilibrium import check_converged as check_converged
 from ._equilibrium import equilibrium as equilibrium
+from ._dynamics import AbstractTimeFunction as AbstractTimeFunction
+from ._dynamics import Damping as Damping
+from ._dynamics import DynamicLoad as DynamicLoad
+from ._dynamics import HarmonicFunction as HarmonicFunction
+from ._dynamics import History as History
+from ._dynamics import MassProperties as MassProperties
+from ._dynamics import Modes as Modes
+from ._dynamics import RampFunction as RampFunction
+from ._dynamics import StepFunction as StepFunction
+from ._dynamics import SupportMotion as SupportMotion
+from ._dynamics import TableFunction as TableFunction
+from ._dynamics import dynamic_load as dynamic_load
+from ._dynamics import mass_matrix as mass_matrix
+from ._dynamics import mass_properties as mass_properties
+from ._dynamics import modes as modes
+from ._dynamics import simulate_dynamics as simulate_dynamics
 from ._elements import ElementParameters as ElementParameters
 from ._elements import ElementTopology as ElementTopology
 from ._elements import FixedPoint as FixedPoint
@@ -91,6 +110,7 @@ from ._spec import LoadedSpec as LoadedSpec
 from ._spec import SpecError as SpecError
 from ._spec import load_spec as load_spec
 from ._structure import Connection as Connection
+from ._structure import InertiaParameters as InertiaParameters
 from ._structure import SpringJointTopology as SpringJointTopology
 from ._structure import Strut as Strut
 from ._structure import Structure as Structure
@@ -99,6 +119,7 @@ from ._structure import Support as Support
 from ._structure import Tube as Tube
 from ._structure import TubeKite as TubeKite
 from ._structure import arc_through_tips as arc_through_tips
+from ._structure import air_density as air_density
 from ._structure import arc_tube as arc_tube
 from ._structure import build_structure as build_structure
 from ._structure import cantilever as cantilever

@@ -4,7 +4,10 @@
   in :mod:`jaxtube.load_spec`), compile and run the load path, and write ``path.csv``,
   ``force_deflection.png``, ``deformed_shape.png`` and ``summary.json`` into ``DIR``.
   ``jaxtube simulate --kite-fem initial.npz --out DIR [--pressure-bar P] [--bending-scale S]``
-  hangs a kite_fem model instead (:mod:`fitting._cli.kite_fem`).
+  hangs a kite_fem model instead (:mod:`fitting._cli.kite_fem`). A spec with a
+  ``[dynamics]`` table is simulated in time instead of along its path, writing
+  ``history.csv``, ``history.png``, ``response.gif``, ``modes.csv`` and ``summary.json``
+  (:mod:`fitting._cli.dynamics`).
 Exit codes: 0 success; 1 the run finished but some steps did not converge (the outputs
 are written, with those steps marked); 2 a bad spec or bad arguments (nothing written).
 
@@ -47,6 +50,7 @@ from .._calibrate.parameters_file import load_law, without_effects_words
 from .._data.units import MM_PER_M
 from .._json import finite_or_none, write_json
 from .common import bad_output_directory, positive_float, positive_int, write_directory
+from .dynamics import simulate_spec_dynamics
 from .kite_fem import simulate_kite_fem
 
 
@@ -152,6 +156,8 @@ def _simulate(args) -> int:
         spec = spec._replace(params=params)
         report.progress(f"bending law of every tube from {args.params}"
                         + without_effects_words(args.params))
+    if meta.dynamics is not None:
+        return simulate_spec_dynamics(spec, out, quiet=args.quiet)
     joint_node = _joint_nodes(spec)
     target = (f"to {meta.path_values[-1] * MM_PER_M:g} mm" if meta.control == "displacement"
               else f"to load factor {meta.path_values[-1]:g}")

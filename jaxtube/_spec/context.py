@@ -24,6 +24,7 @@ class SpecContext:
     loads: list = dataclasses.field(default_factory=list)  # (where, ref, force, torque)
     gravity: np.ndarray | None = None
     path: dict | None = None
+    dynamics: object = None  # DynamicsSpec of a [dynamics] table
     tube_names_known: bool = True  # False when a tube name is missing or invalid
     node_aliases: dict = dataclasses.field(default_factory=dict)  # "le:centre" -> "le:12"
 

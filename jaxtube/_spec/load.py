@@ -13,11 +13,13 @@ import tomllib
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import equinox as eqx
 import numpy as np
 
 from .._controls import DisplacementControl, ForceControl
 from .._problems import Problem, ProblemReport
 from .._structure.build import build_structure
+from .._structure.inertia import InertiaParameters, air_density
 from .._structure.structure import (
     STANDARD_GRAVITY,
     Connection,
@@ -28,6 +30,7 @@ from .._structure.structure import (
 from .._units import unit_factor
 from .check import SpecError, check_keys, format_point, key_path
 from .context import SpecContext
+from .dynamics import DynamicsSpec, read_dynamics
 from .elements import ELEMENT_TABLES, read_element_tables
 from .kite import read_kite
 from .tables import (
@@ -55,6 +58,7 @@ class SpecMetadata:
         supports: ``(node_ref, node_id, kind)`` per support.
         loads: ``(node_ref, node_id, force [3] N, torque [3] N m)`` per ``[[load]]``.
         gravity: ``[3]`` [m/s^2]. raw: the parsed TOML document.
+        dynamics: the ``[dynamics]`` table (:class:`DynamicsSpec`) or ``None``.
     """
 
     source: str
@@ -70,6 +74,7 @@ class SpecMetadata:
     loads: tuple
     gravity: np.ndarray
     raw: dict
+    dynamics: DynamicsSpec | None = None
 
     @property
     def steps(self) -> int:
@@ -98,6 +103,7 @@ TABLE_READERS: dict[str, Callable[[ProblemReport, Any, SpecContext], None]] = {
     "load": read_loads,
     "gravity": read_gravity,
     "path": read_path,
+    "dynamics": read_dynamics,
 }
 REQUIRED_TABLES = {"tube": "one or more [[tube]] tables (or a [kite])", "support": "one or "
                    "more [[support]] tables (or a [kite])", "path": "a [path] table"}
@@ -203,6 +209,8 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
         raise SpecError([Problem(source, f"cannot assemble the structure: {error}")]) \
             from None
 
+    if ctx.dynamics is not None:
+        params = with_dynamics_inertia(params, ctx.dynamics)
     path_spec = ctx.path
     count = path_spec["steps"] if steps is None else steps
     fractions = np.arange(1, count + 1) / count
@@ -230,5 +238,20 @@ def spec_from_dict(document: dict, *, source: str = "<spec>",
                     for _, ref, f, t in ctx.loads),
         gravity=np.asarray(gravity, dtype=float),
         raw=document,
+        dynamics=ctx.dynamics,
     )
     return LoadedSpec(structure, params, path, metadata)
+
+
+def with_dynamics_inertia(params: StructureParameters,
+                          dynamics: DynamicsSpec) -> StructureParameters:
+    """The inertia a ``[dynamics]`` table asks for: the enclosed air at each tube's
+    pressure and ``air_temperature_K`` (ideal gas), and the added mass ``C_a rho_ambient``."""
+    enclosed = (air_density(params.pressure, dynamics.air_temperature)
+                if dynamics.air_temperature is not None else np.zeros(()))
+    inertia = InertiaParameters(
+        enclosed_air_density=enclosed,
+        added_mass_density=np.asarray(dynamics.added_mass_coefficient
+                                      * dynamics.ambient_air_density, float),
+        line_mass=params.inertia.line_mass)
+    return eqx.tree_at(lambda q: q.inertia, params, inertia)

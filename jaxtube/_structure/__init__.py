@@ -3,12 +3,15 @@
 - :mod:`.tube`: one tube and its centreline generators;
 - :mod:`.structure`: the static topology (:class:`Structure`, with its spring-joint
   topology), every number (:class:`StructureParameters`), supports and connections;
+- :mod:`.inertia`: what only the dynamics needs (:class:`InertiaParameters`);
 - :mod:`.build`: :func:`build_structure` and :func:`cantilever`;
 - :mod:`.kite`: parametric tube kites (:class:`TubeKite`).
 """
 
 from .build import build_structure as build_structure
 from .build import cantilever as cantilever
+from .inertia import InertiaParameters as InertiaParameters
+from .inertia import air_density as air_density
 from .kite import KITE_NODE_NAMES as KITE_NODE_NAMES
 from .kite import LEADING_EDGE as LEADING_EDGE
 from .kite import Strut as Strut

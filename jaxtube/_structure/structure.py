@@ -33,6 +33,7 @@ import numpy as np
 from jax import Array
 
 from .._elements import ElementParameters, ElementTopology
+from .inertia import InertiaParameters
 
 # Joint kinds (static integers): how the reference relative rotation is split.
 JOINT_BEND = 0  # two segments of one tube: mid-frame split, tributary (L_a + L_b) / 2
@@ -174,6 +175,8 @@ class StructureParameters(eqx.Module):
             built), so structures without torques pay nothing for them.
         gravity: gravitational acceleration, ``[3]`` [m/s^2].
         elements: point nodes, lines, pulleys and masses (``jaxtube._elements``).
+        inertia: what only the dynamics needs (enclosed and added air, line masses;
+            :class:`InertiaParameters`); its defaults leave it out.
     """
 
     node_position: Array
@@ -188,6 +191,7 @@ class StructureParameters(eqx.Module):
     gravity: Array
     shear_flexibility: Array
     elements: ElementParameters = eqx.field(default_factory=ElementParameters)
+    inertia: InertiaParameters = eqx.field(default_factory=InertiaParameters)
 
 
 def _parse_node_ref(ref) -> tuple[str, int]:
