@@ -11,7 +11,7 @@ peak-to-peak swing), against each other and against Euler-Bernoulli; wall times 
 warm: compiled before timing; PyElastica after a short warm-up run for numba). The last
 line states the agreement and the wall-time ratio.
 
-Run: ``python experiments/bench_dynamics.py [--quick]`` (needs the ``bench`` extra:
+Run: ``python -m experiments.bench_dynamics [--quick]`` (needs the ``bench`` extra:
 ``pip install pyelastica``).
 """
 
