@@ -49,7 +49,6 @@ from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
 from ._diagnose.ranking import CandidateRanking, DiagnoseOptions, default_candidates
 from ._diagnose.score import (
     ScoreTest,
-    cross_validated_rmse,
     likelihood_ratio_p_value,
     score_test,
 )
@@ -62,6 +61,8 @@ from ._figures.plots import (
     ranking_figure,
     where_it_fails_figure,
 )
+from ._figures.study import study_figure
+from ._json import json_ready, write_json
 from ._shape.files import (
     ShapeFileError,
     ShapeFileProblem,
@@ -81,6 +82,12 @@ from ._shape.registration import (
 )
 from ._shape.score import ShapeScore, score_shape
 from ._shape.surfaces import TubeSurfaces
+from ._study.designs import DesignData, StudyDesign, make_design_data
+from ._study.designs import draw_design as draw_study_design
+from ._study.run import diagnose_design, run_study
+from ._study.run import open_client as open_study_client
+from ._study.run import stored_record as stored_study_record
+from ._study.summary import study_report, study_summary
 from ._sweep.result import SweepResult, SweepSettings
 from ._sweep.status import STATUS_MESSAGES, SweepStatus
 from ._sweep.sweep import regime_boundaries, sweep
@@ -90,7 +97,7 @@ __all__ = [
     "RadiusScaling", "Reinforcement", "SelfWeight", "Shear", "ScoreTest", "score_test",
     "UnwrinkledLinearity",
     "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
-    "ResidualVerdict", "compare", "cross_validated_rmse", "default_candidates", "diagnose",
+    "ResidualVerdict", "compare", "default_candidates", "diagnose",
     "fit_problem",
     "before_after_figure", "fit_figure", "ranking_figure", "where_it_fails_figure",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
@@ -105,6 +112,9 @@ __all__ = [
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
     "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
+    "DesignData", "StudyDesign", "diagnose_design", "draw_study_design", "make_design_data",
+    "open_study_client", "run_study", "stored_study_record", "study_figure", "study_report",
+    "study_summary", "json_ready", "write_json",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

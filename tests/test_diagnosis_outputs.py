@@ -1,0 +1,114 @@
+"""No result of a diagnosis is lost (issue 34): documents with ``null`` for every non-finite
+number; each output written on its own; exit status 0 with a converged final model, 1
+without.
+
+Data: ``tests/data/diagnosis/three_radii_no_cv.csv``, made by the independent continuum
+solver through the study's generator (``fitting.make_design_data`` of ``StudyDesign(index=0,
+seed=7, specimens=((0.2, 0.05, 1.2), (0.2, 0.075, 1.2), (0.2, 0.1, 1.2)), points=8,
+noise_force_N=0.05, noise_deflection_mm=0.02)``: a tension-field tube, nothing hidden). Three
+curves of eight points at three radii: too few for the blocked cross-validation (a fold's
+leverage is 0.94), so its error is undefined (NaN), which once crashed the command at its
+very end. The model is small (6 segments, two candidates) and its compiled program is
+shared with ``tests/test_diagnosis_study.py`` (same shape) when both run in one process.
+"""
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fitting as ft
+from fitting._cli import diagnose as diagnose_command
+from fitting._cli import main
+
+DATA = Path(__file__).parent / "data" / "diagnosis" / "three_radii_no_cv.csv"
+ARGS = ["--quiet", "--segments", "6", "--candidates", "radius_scaling,self_weight"]
+
+
+def strict_json(path: Path):
+    """The document at ``path``; NaN or infinity (not JSON) is an error."""
+    def refuse(constant):
+        raise ValueError(f"{path}: {constant} is not JSON")
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_write_json_turns_nan_and_infinity_anywhere_into_null(tmp_path):
+    document = {"a": math.nan, "b": [1.0, math.inf, (-math.inf, 2)],
+                "c": {"d": np.float64("nan"), "e": np.array([1.0, np.nan]),
+                      "f": np.float32(np.inf), "g": np.int64(3), "h": np.bool_(True)},
+                "i": (np.array([[np.nan, 0.5]]),), 4: "key made a string", "j": None}
+    ft.write_json(tmp_path / "doc.json", document)
+    assert strict_json(tmp_path / "doc.json") == {
+        "a": None, "b": [1.0, None, [None, 2]],
+        "c": {"d": None, "e": [1.0, None], "f": None, "g": 3, "h": True},
+        "i": [[[None, 0.5]]], "4": "key made a string", "j": None}
+    with pytest.raises(TypeError, match="not JSON serialisable: object"):
+        ft.json_ready({"x": object()})
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    """One run of ``jaxtube diagnose`` on the three-radii data, with the Diagnosis it made."""
+    out = tmp_path_factory.mktemp("diagnose") / "out"
+    made = []
+    original = diagnose_command.diagnose
+
+    def keep(*args, **kwargs):
+        made.append(original(*args, **kwargs))
+        return made[-1]
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(diagnose_command, "diagnose", keep)
+        code = main(["diagnose", str(DATA), "--out", str(out), *ARGS])
+    return code, out, made[0]
+
+
+def test_too_few_curves_for_cross_validation_is_diagnosed_end_to_end(diagnosed):
+    code, out, _ = diagnosed
+    assert code == 0
+    document = strict_json(out / "diagnosis.json")
+    assert document["output_failures"] == {}
+    assert document["baseline"]["cv_rmse_N"] is None  # undefined, written as null
+    assert document["final"]["converged"] is True
+    assert any("Cross-validation left out" in s for s in document["statements"])
+    assert math.isfinite(document["noise_N"]) and document["final"]["rmse_N"] > 0
+    strict_json(out / "parameters.json")
+    assert "verdict: " in (out / "report.txt").read_text()
+    for name in ("fit_0_baseline.png", "where_it_fails.png", "ranking.png",
+                 "before_after.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+
+
+def test_a_failing_writer_loses_only_its_own_file(diagnosed, tmp_path, monkeypatch, capsys):
+    _, _, diagnosis = diagnosed
+
+    def broken(diagnosis):
+        raise RuntimeError("no room for the bars")
+
+    monkeypatch.setattr(diagnose_command, "ranking_figure", broken)
+    out = tmp_path / "out"
+    failures = diagnose_command.write_outputs(out, diagnosis, diagnosis.to_json())
+    assert failures == {"ranking.png": "RuntimeError: no room for the bars"}
+    assert "could not write ranking.png: RuntimeError: no room" in capsys.readouterr().err
+    assert not (out / "ranking.png").exists()
+    assert strict_json(out / "diagnosis.json")["output_failures"] == failures
+    for name in ("report.txt", "parameters.json", "fit_0_baseline.png", "before_after.png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_exit_status_is_1_only_when_the_final_model_did_not_converge(diagnosed, tmp_path,
+                                                                     monkeypatch, capsys):
+    _, _, diagnosis = diagnosed
+    assert not diagnosis.steps  # the final model is the baseline
+    stalled = dataclasses.replace(diagnosis.baseline.convergence, converged=False,
+                                  message="iteration cap reached")
+    unconverged = dataclasses.replace(
+        diagnosis, baseline=dataclasses.replace(diagnosis.baseline, convergence=stalled))
+    monkeypatch.setattr(diagnose_command, "diagnose", lambda *args, **kwargs: unconverged)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(DATA), "--out", str(out), *ARGS]) == 1
+    assert "FINAL MODEL DID NOT CONVERGE (iteration cap reached)" in capsys.readouterr().out
+    assert strict_json(out / "diagnosis.json")["final"]["converged"] is False
