@@ -97,7 +97,7 @@ def open_client(scheduler: str | None = None, workers: int = 1, processes: bool 
     if scheduler is not None:
         return Client(scheduler)
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=None)
+                           dashboard_address=":0")
     return Client(cluster)
 
 

@@ -1,6 +1,10 @@
-"""No result of a diagnosis is lost (issue 34): documents with ``null`` for every non-finite
-number; each output written on its own; exit status 0 with a converged final model, 1
-without.
+"""The diagnosis you can trust (issue 34). No result is lost: documents with ``null`` for
+every non-finite number; each output written on its own; exit status 0 with a converged
+final model, 1 without. And the simulation study's machinery: designs diagnosed on a local
+Dask cluster of two workers, stored as they end (a second run computes nothing), and tables
+that account for every design (the study itself, ``experiments/diagnosis_study.py``, is not a
+test; its ``--quick`` dozen takes too long for CI, so a two-design variant of the same
+functions runs here).
 
 Data: ``tests/data/diagnosis/three_radii_no_cv.csv``, made by the independent continuum
 solver through the study's generator (``fitting.make_design_data`` of ``StudyDesign(index=0,
@@ -9,7 +13,7 @@ noise_force_N=0.05, noise_deflection_mm=0.02)``: a tension-field tube, nothing h
 curves of eight points at three radii: too few for the blocked cross-validation (a fold's
 leverage is 0.94), so its error is undefined (NaN), which once crashed the command at its
 very end. The model is small (6 segments, two candidates) and its compiled program is
-shared with ``tests/test_diagnosis_study.py`` (same shape) when both run in one process.
+shared by every diagnosis of this file (same shape, same model).
 """
 
 import dataclasses
@@ -25,7 +29,9 @@ from fitting._cli import diagnose as diagnose_command
 from fitting._cli import main
 
 DATA = Path(__file__).parent / "data" / "diagnosis" / "three_radii_no_cv.csv"
-ARGS = ["--quiet", "--segments", "6", "--candidates", "radius_scaling,self_weight"]
+CANDIDATES = ("radius_scaling", "self_weight")
+ARGS = ["--quiet", "--segments", "6", "--candidates", ",".join(CANDIDATES)]
+THREE_RADII = ((0.2, 0.05, 1.2), (0.2, 0.075, 1.2), (0.2, 0.1, 1.2))
 
 
 def strict_json(path: Path):
@@ -112,3 +118,48 @@ def test_exit_status_is_1_only_when_the_final_model_did_not_converge(diagnosed, 
     assert main(["diagnose", str(DATA), "--out", str(out), *ARGS]) == 1
     assert "FINAL MODEL DID NOT CONVERGE (iteration cap reached)" in capsys.readouterr().out
     assert strict_json(out / "diagnosis.json")["final"]["converged"] is False
+
+
+def _rate_or_none(value) -> bool:
+    return value is None or 0.0 <= value <= 1.0
+
+
+def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_path):
+    """Two tiny designs (the shape of the data above: three curves of eight points), one with
+    nothing hidden and one with self-weight over two lengths and two pressures, on a local
+    cluster of two workers (threads of this process, so the compiled model is shared)."""
+    designs = [ft.StudyDesign(index=0, seed=7, specimens=THREE_RADII, points=8,
+                              noise_force_N=0.05, noise_deflection_mm=0.02),
+               ft.StudyDesign(index=1, seed=7, specimens=((0.2, 0.05, 1.2), (0.3, 0.075, 0.8),
+                                                          (0.2, 0.1, 0.8)),
+                              points=8, noise_force_N=0.05, noise_deflection_mm=0.02,
+                              hidden=(("self_weight", 0.5),))]
+    assert designs[1].separable("self_weight") and not designs[0].separable("self_weight")
+    with ft.open_study_client(workers=2, processes=False) as client:
+        assert len(client.scheduler_info()["workers"]) == 2
+        records, ran = ft.run_study(designs, tmp_path, client, candidates=CANDIDATES,
+                                    segments=6, progress=False)
+        again, ran_again = ft.run_study(designs, tmp_path, client, candidates=CANDIDATES,
+                                        segments=6, progress=False)
+    assert ran == 2 and ran_again == 0 and again == records
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{d.name}.json" for d in designs]
+    assert [r["name"] for r in records] == [d.name for d in designs]
+    assert all(r["error"] is None for r in records), [r.get("traceback") for r in records]
+    assert records[1]["snr"]["self_weight"] > 0 and records[1]["separable"]["self_weight"]
+    summary = ft.study_summary(records)
+    assert summary["designs"] == summary["diagnosed"] + summary["failed"] == 2
+    assert sum(map(sum, summary["confusion"]["counts"])) == summary["diagnosed"]
+    assert summary["confusion"]["hidden"] == ["none", "self_weight"]
+    assert summary["false_alarm"]["nulls"] == 1
+    assert sum(row["effects"] for row in summary["power"]) == 1
+    rates = [summary["false_alarm"]["rate"], summary["power_resolvable"]["found_clean"],
+             summary["final_rmse_over_floor"]["within"], summary["noise_estimate_error"]["within"]]
+    rates += [row[key] for row in summary["power"] for key in ("found", "found_clean")]
+    assert all(_rate_or_none(rate) for rate in rates), rates
+    assert summary["seconds"]["median"] > 0 and summary["seconds"]["median_6_curves"] is None
+    report = ft.study_report(summary)
+    assert "false alarms on null designs: " in report and "n/a" in report
+    ft.write_json(tmp_path.parent / "summary.json", summary)
+    strict_json(tmp_path.parent / "summary.json")
+    ft.study_figure(records).savefig(tmp_path.parent / "study.png")
+    assert (tmp_path.parent / "study.png").stat().st_size > 10_000
