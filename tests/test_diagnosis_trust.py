@@ -156,7 +156,7 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
              summary["final_rmse_over_floor"]["within"], summary["noise_estimate_error"]["within"]]
     rates += [row[key] for row in summary["power"] for key in ("found", "found_clean")]
     assert all(_rate_or_none(rate) for rate in rates), rates
-    assert summary["seconds"]["median"] > 0 and summary["seconds"]["median_6_curves"] is None
+    assert summary["seconds"]["median"] > 0 and summary["seconds"]["median_6_curves_warm"] is None
     report = ft.study_report(summary)
     assert "false alarms on null designs: " in report and "n/a" in report
     ft.write_json(tmp_path.parent / "summary.json", summary)

@@ -25,6 +25,10 @@ from .._diagnose.ranking import DiagnoseOptions, default_candidates
 from .._json import write_json
 from .designs import StudyDesign, make_design_data
 
+#: Shapes ``(curves, points, segments, candidates)`` this process has diagnosed: the first
+#: diagnosis of a shape compiles its model (or loads it from the persistent compilation
+#: cache), later ones run warm; each record says which it was (``warm``).
+_SHAPES_SEEN: set = set()
 #: Words of the diagnosis' statements that say a candidate cannot be read from the data.
 CANNOT_TELL = ("cannot be told apart", "cannot be tested", "can barely be told apart")
 
@@ -46,8 +50,9 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     and return its record (a JSON-ready dict): the design, its noise floor, each hidden
     effect's signal-to-noise ratio and whether the design can separate it, the verdict, its
     physical effects (``found``), baseline and final RMSE [N], the noise estimate [N],
-    convergence, the "cannot be told apart" statements by effect, and seconds (of the
-    diagnosis; of making the data). A diagnosis that raises is recorded with ``error``.
+    convergence, the "cannot be told apart" statements by effect, seconds (of the diagnosis;
+    of making the data) and whether this process had diagnosed the same shape before
+    (``warm``: no compilation in those seconds). A diagnosis that raises is recorded with ``error``.
 
     ``candidates``: names to restrict the candidates to (default: all of
     :func:`fitting.default_candidates`); ``segments``: the model tube's segments."""
@@ -65,6 +70,9 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     record.update(noise_floor_N=made.noise_floor_N, snr=made.snr,
                   separable={name: design.separable(name) for name, _ in design.hidden},
                   data_seconds=time.perf_counter() - started)
+    shape = (len(design.specimens), design.points, segments, tuple(c.name for c in chosen))
+    record["warm"] = shape in _SHAPES_SEEN
+    _SHAPES_SEEN.add(shape)
     started = time.perf_counter()
     try:
         diagnosis = diagnose(data, scaling=scaling,
