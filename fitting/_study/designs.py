@@ -170,13 +170,7 @@ def make_design_data(design: StudyDesign, path=None) -> DesignData:
         truths.append((p_bar, radius, length, deflections))
     rows = continuum.make_dataset(specs, design.noise_force_N, design.noise_deflection_mm,
                                   design.seed * 100003 + design.index, path)
-    squares = []
-    for spec in specs:
-        mine = [row for row in rows if row["curve"] == spec.name]
-        recorded = np.array([row["deflection_mm"] for row in mine]) * 1e-3
-        force = np.array([row["force_N"] for row in mine])
-        squares.extend((spec.model.curve(recorded) - force) ** 2)
-    floor = math.sqrt(float(np.mean(squares)))
+    floor = continuum.noise_floor(specs, rows)
     snr = {}
     for effect, _ in design.hidden:
         others = tuple(pair for pair in design.hidden if pair[0] != effect)
