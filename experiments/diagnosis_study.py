@@ -54,7 +54,7 @@ def main(argv=None) -> int:
         records = [r for d in designs if (r := ft.stored_study_record(
             results / "designs" / f"{d.name}.json", d)) is not None]
     else:
-        with ft.open_study_client(args.scheduler, args.workers) as client:
+        with ft.open_cluster_client(args.scheduler, args.workers) as client:
             client.run(jt.enable_compilation_cache)
             records, ran = ft.run_study(designs, results / "designs", client)
         print(f"ran {ran} designs; {count - ran} were stored already", file=sys.stderr)

@@ -43,6 +43,7 @@ from ._calibrate.problem import (
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
+from ._cluster import open_client as open_cluster_client
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
 from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
@@ -85,9 +86,9 @@ from ._shape.surfaces import TubeSurfaces
 from ._study.designs import DesignData, StudyDesign, make_design_data
 from ._study.designs import draw_design as draw_study_design
 from ._study.run import diagnose_design, run_study
-from ._study.run import open_client as open_study_client
 from ._study.run import stored_record as stored_study_record
 from ._study.summary import study_report, study_summary
+from ._sweep.cluster import sweep_on_cluster
 from ._sweep.result import SweepResult, SweepSettings
 from ._sweep.status import STATUS_MESSAGES, SweepStatus
 from ._sweep.sweep import regime_boundaries, sweep
@@ -113,8 +114,8 @@ __all__ = [
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
     "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
     "DesignData", "StudyDesign", "diagnose_design", "draw_study_design", "make_design_data",
-    "open_study_client", "run_study", "stored_study_record", "study_figure", "study_report",
-    "study_summary", "json_ready", "write_json",
+    "open_cluster_client", "run_study", "stored_study_record", "study_figure", "study_report",
+    "study_summary", "sweep_on_cluster", "json_ready", "write_json",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

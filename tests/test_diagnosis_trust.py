@@ -135,7 +135,7 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
                               points=8, noise_force_N=0.05, noise_deflection_mm=0.02,
                               hidden=(("self_weight", 0.5),))]
     assert designs[1].separable("self_weight") and not designs[0].separable("self_weight")
-    with ft.open_study_client(workers=2, processes=False) as client:
+    with ft.open_cluster_client(workers=2, processes=False) as client:
         assert len(client.scheduler_info()["workers"]) == 2
         records, ran = ft.run_study(designs, tmp_path, client, candidates=CANDIDATES,
                                     segments=6, progress=False)

@@ -1,10 +1,8 @@
 """Running the diagnosis study: one design's diagnosis and its record
-(:func:`diagnose_design`), and the designs on a Dask ``distributed`` cluster, each record
-stored as it ends so that a stopped study resumes where it stopped (:func:`run_study`).
-
-Dask is the study's engine (the ``study`` extra): a :class:`distributed.LocalCluster` of
-worker processes by default, or a running scheduler's address for a real cluster. Records
-are sent back to the client and written there, so the workers need no shared filesystem.
+(:func:`diagnose_design`), and the designs on a Dask ``distributed`` cluster
+(:func:`fitting.open_cluster_client`), each record stored as it ends so that a stopped study
+resumes where it stopped (:func:`run_study`). Records are sent back to the client and
+written there, so the workers need no shared filesystem.
 """
 
 from __future__ import annotations
@@ -93,20 +91,6 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
         cannot_tell=_told_apart_statements(diagnosis.statements, names),
         seconds=time.perf_counter() - started)
     return record
-
-
-def open_client(scheduler: str | None = None, workers: int = 1, processes: bool = True):
-    """A :class:`distributed.Client`: on the scheduler at ``scheduler`` (an address such as
-    ``tcp://host:8786``), else on a new :class:`distributed.LocalCluster` of ``workers``
-    single-threaded workers (processes, or threads of this process when not
-    ``processes``). Close it (it is a context manager) to stop a local cluster."""
-    from distributed import Client, LocalCluster  # the study extra; only studies need it
-
-    if scheduler is not None:
-        return Client(scheduler)
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=":0")
-    return Client(cluster)
 
 
 def stored_record(path: Path, design: StudyDesign) -> dict | None:
