@@ -16,6 +16,11 @@ written from every stored record of the drawn designs.
     python experiments/diagnosis_study.py --quick                # a dozen small designs
     python experiments/diagnosis_study.py --designs 300 --workers 2
     python experiments/diagnosis_study.py --designs 300 --report-only   # tables only
+    python experiments/diagnosis_study.py --designs 300 --noise-only    # the noise estimate
+
+``--noise-only`` makes each design's data and compares the model-free noise estimate of
+difference orders 1, 2 (the default) and 3 with the noise floor, without a diagnosis
+(``RESULTS/noise/``, ``RESULTS/noise_report.txt``).
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ def main(argv=None) -> int:
                              "local cluster")
     parser.add_argument("--results", type=Path, default=None,
                         help=f"output directory (default {RESULTS}, _quick for --quick)")
+    parser.add_argument("--noise-only", action="store_true",
+                        help="only the noise estimate against the floor (no diagnosis)")
     parser.add_argument("--report-only", action="store_true",
                         help="write the tables and figure from the stored records, run nothing")
     args = parser.parse_args(argv)
@@ -50,6 +57,8 @@ def main(argv=None) -> int:
     results = args.results or (RESULTS.with_name(RESULTS.name + "_quick") if args.quick
                                else RESULTS)
     designs = [ft.draw_study_design(k, args.seed, small=args.quick) for k in range(count)]
+    if args.noise_only:
+        return noise_only(designs, results, args)
     if args.report_only:
         records = [r for d in designs if (r := ft.stored_study_record(
             results / "designs" / f"{d.name}.json", d)) is not None]
@@ -66,6 +75,24 @@ def main(argv=None) -> int:
     (results / "report.txt").write_text(report + "\n")
     ft.study_figure(records).savefig(results / "diagnosis_study.png", dpi=110)
     print(report)
+    return 0
+
+
+def noise_only(designs, results: Path, args) -> int:
+    """The noise estimate of each design against its floor (module docstring)."""
+    with ft.open_cluster_client(args.scheduler, args.workers) as client:
+        records, _ = ft.run_study(designs, results / "noise", client,
+                                  task=ft.noise_estimate_errors)
+    summary = ft.noise_summary(records)
+    lines = [f"noise estimate / noise floor - 1 over {len(records)} designs (seed {args.seed})",
+             f"  {'order':<8}{'designs':>8}{'within 25 %':>13}  quantiles 5/25/50/75/95 %"]
+    for order, row in summary.items():
+        quantiles = " ".join(f"{row[k]:+.2f}" for k in row if k.startswith("q"))
+        within = "n/a" if row["within"] is None else f"{row['within']:.0%}"
+        lines.append(f"  {order:<8}{row['designs']:>8}{within:>13}  {quantiles}")
+    ft.write_json(results / "noise_summary.json", summary)
+    (results / "noise_report.txt").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
     return 0
 
 

@@ -85,6 +85,7 @@ from ._shape.score import ShapeScore, score_shape
 from ._shape.surfaces import TubeSurfaces
 from ._study.designs import DesignData, StudyDesign, make_design_data
 from ._study.designs import draw_design as draw_study_design
+from ._study.noise import noise_estimate_errors, noise_summary
 from ._study.run import diagnose_design, run_study
 from ._study.run import stored_record as stored_study_record
 from ._study.summary import study_report, study_summary
@@ -115,7 +116,8 @@ __all__ = [
     "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
     "DesignData", "StudyDesign", "diagnose_design", "draw_study_design", "make_design_data",
     "open_cluster_client", "run_study", "stored_study_record", "study_figure", "study_report",
-    "study_summary", "sweep_on_cluster", "json_ready", "write_json",
+    "study_summary", "sweep_on_cluster", "json_ready", "write_json", "noise_estimate_errors",
+    "noise_summary",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

@@ -137,10 +137,10 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
     assert designs[1].separable("self_weight") and not designs[0].separable("self_weight")
     with ft.open_cluster_client(workers=2, processes=False) as client:
         assert len(client.scheduler_info()["workers"]) == 2
-        records, ran = ft.run_study(designs, tmp_path, client, candidates=CANDIDATES,
-                                    segments=6, progress=False)
-        again, ran_again = ft.run_study(designs, tmp_path, client, candidates=CANDIDATES,
-                                        segments=6, progress=False)
+        records, ran = ft.run_study(designs, tmp_path, client, progress=False,
+                                    candidates=CANDIDATES, segments=6)
+        again, ran_again = ft.run_study(designs, tmp_path, client, progress=False,
+                                        candidates=CANDIDATES, segments=6)
     assert ran == 2 and ran_again == 0 and again == records
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"{d.name}.json" for d in designs]
     assert [r["name"] for r in records] == [d.name for d in designs]
@@ -163,3 +163,20 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
     strict_json(tmp_path.parent / "summary.json")
     ft.study_figure(records).savefig(tmp_path.parent / "study.png")
     assert (tmp_path.parent / "study.png").stat().st_size > 10_000
+
+
+def test_noise_only_records_match_the_estimate_the_diagnosis_uses():
+    """The study's noise-only route (no diagnosis) sees the data as the diagnosis does: its
+    order-2 estimate over the floor is the one of the committed CSV (read by
+    ``load_measurements``), whose floor is the generator's."""
+    design = ft.StudyDesign(index=0, seed=7, specimens=THREE_RADII, points=8,
+                            noise_force_N=0.05, noise_deflection_mm=0.02)
+    record = ft.noise_estimate_errors(design)
+    floor = ft.make_design_data(design, with_snr=False).noise_floor_N
+    assert record["noise_floor_N"] == floor
+    expected = ft.estimate_noise(ft.load_measurements(DATA)) / floor - 1.0
+    assert record["error_order_2"] == pytest.approx(expected, rel=1e-12)
+    assert record["error_order_1"] != record["error_order_2"] != record["error_order_3"]
+    summary = ft.noise_summary([record, dict(record, error_order_3=None)])
+    assert summary["order_3"]["designs"] == 1 and summary["order_2"]["designs"] == 2
+    assert all(0.0 <= row["within"] <= 1.0 for row in summary.values())

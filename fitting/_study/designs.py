@@ -153,9 +153,10 @@ def _forces_where_reached(model, deflections_m: np.ndarray) -> np.ndarray:
         return out
 
 
-def make_design_data(design: StudyDesign, path=None) -> DesignData:
+def make_design_data(design: StudyDesign, path=None, with_snr: bool = True) -> DesignData:
     """The design's noisy curves (written as CSV to ``path`` when given), noise floor and
-    effect signal-to-noise ratios (:class:`DesignData`)."""
+    effect signal-to-noise ratios (:class:`DesignData`; empty unless ``with_snr``: they cost
+    a second solve of every curve per hidden effect)."""
     specs, truths = [], []
     sizes = dict(design.hidden)
     for p_bar, radius, length in design.specimens:
@@ -172,7 +173,7 @@ def make_design_data(design: StudyDesign, path=None) -> DesignData:
                                   design.seed * 100003 + design.index, path)
     floor = continuum.noise_floor(specs, rows)
     snr = {}
-    for effect, _ in design.hidden:
+    for effect, _ in design.hidden if with_snr else ():
         others = tuple(pair for pair in design.hidden if pair[0] != effect)
         largest = 0.0
         for spec, (p_bar, radius, length, deflections) in zip(specs, truths):

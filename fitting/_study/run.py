@@ -104,10 +104,10 @@ def stored_record(path: Path, design: StudyDesign) -> dict | None:
     return record if record.get("design") == json.loads(json.dumps(design.to_json())) else None
 
 
-def run_study(designs: Sequence[StudyDesign], results: Path, client,
-              candidates: Sequence[str] | None = None, segments: int | None = None,
-              progress: bool = True) -> tuple[list[dict], int]:
-    """Diagnose every design on ``client``'s cluster; each record is written to
+def run_study(designs: Sequence[StudyDesign], results: Path, client, task=None,
+              progress: bool = True, **options) -> tuple[list[dict], int]:
+    """Run ``task(design, **options)`` (default :func:`diagnose_design`; a function returning
+    a JSON-ready record) for every design on ``client``'s cluster; each record is written to
     ``results/<design name>.json`` as it ends. Designs whose record is already stored are
     not run again. Returns the records in the order of ``designs`` and how many were run."""
     from distributed import as_completed
@@ -116,8 +116,8 @@ def run_study(designs: Sequence[StudyDesign], results: Path, client,
     results.mkdir(parents=True, exist_ok=True)
     records = {d.name: stored_record(results / f"{d.name}.json", d) for d in designs}
     pending = [d for d in designs if records[d.name] is None]
-    futures = {client.submit(diagnose_design, d, candidates, segments, pure=False): d
-               for d in pending}
+    task = task or diagnose_design
+    futures = {client.submit(task, d, pure=False, **options): d for d in pending}
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -136,7 +136,7 @@ def run_study(designs: Sequence[StudyDesign], results: Path, client,
             write_json(results / f"{design.name}.json", record)
             records[design.name] = json.loads((results / f"{design.name}.json").read_text())
             if bar is not None:
-                bar.set_postfix_str(f"{design.hidden_label} -> {record.get('found', 'error')}")
+                bar.set_postfix_str(f"{design.hidden_label} -> {record.get('found', '')}")
                 bar.update(1)
     finally:
         if bar is not None:
