@@ -180,3 +180,35 @@ def test_noise_only_records_match_the_estimate_the_diagnosis_uses():
     summary = ft.noise_summary([record, dict(record, error_order_3=None)])
     assert summary["order_3"]["designs"] == 1 and summary["order_2"]["designs"] == 2
     assert all(0.0 <= row["within"] <= 1.0 for row in summary.values())
+
+
+def test_when_every_coordinate_is_flagged_only_the_undetermined_directions_are_held(
+        monkeypatch):
+    """A study design (one pressure, large deflection noise) flagged every coordinate of its
+    baseline as undetermined, and holding them all left nothing to fit ("ValueError: nothing
+    to fit"). Then only one coordinate per direction the data do not see is held: here the
+    third column is the sum of the first two (one such direction)."""
+    from fitting._diagnose import selection
+
+    rng = np.random.default_rng(0)
+    columns = rng.standard_normal((12, 3))
+    columns[:, 2] = columns[:, 0] + columns[:, 1]
+    refits = []
+
+    class Problem:
+        free_names = ("a", "b", "c")
+        free_index = (0, 1, 2)
+
+        def with_free(self, names, vector):
+            refits.append(tuple(names))
+            return self
+
+    fake = type("Result", (), {"problem": Problem(), "jacobian": columns * [1.0, 1e3, 2.0],
+                               "free_standard_errors": np.full(3, np.inf), "vector": None})()
+    monkeypatch.setattr(selection, "fit_problem", lambda problem, options: fake)
+    held = selection.least_determined(fake)
+    assert len(held) == 1 and held[0] in Problem.free_names
+    _, still_held = selection.hold_undetermined_where_left(fake, None)
+    assert still_held == held and refits == [tuple(n for n in "abc" if n not in held)]
+    fake.jacobian[:, 2] += rng.standard_normal(12)  # determined: nothing is held
+    assert selection.least_determined(fake) == []
