@@ -51,7 +51,8 @@ def main(argv=None) -> int:
     parser.add_argument("--noise-only", action="store_true",
                         help="only the noise estimate against the floor (no diagnosis)")
     parser.add_argument("--report-only", action="store_true",
-                        help="write the tables and figure from the stored records, run nothing")
+                        help="write the tables (and figure) from the stored records, run "
+                             "nothing")
     args = parser.parse_args(argv)
     count = 12 if args.quick else args.designs
     results = args.results or (RESULTS.with_name(RESULTS.name + "_quick") if args.quick
@@ -60,8 +61,7 @@ def main(argv=None) -> int:
     if args.noise_only:
         return noise_only(designs, results, args)
     if args.report_only:
-        records = [r for d in designs if (r := ft.stored_study_record(
-            results / "designs" / f"{d.name}.json", d)) is not None]
+        records = stored(designs, results / "designs")
     else:
         with ft.open_cluster_client(args.scheduler, args.workers) as client:
             client.run(jt.enable_compilation_cache)
@@ -78,13 +78,23 @@ def main(argv=None) -> int:
     return 0
 
 
+def stored(designs, folder: Path) -> list[dict]:
+    """The records stored in ``folder`` of the drawn ``designs`` (the others are left out)."""
+    return [r for d in designs
+            if (r := ft.stored_study_record(folder / f"{d.name}.json", d)) is not None]
+
+
 def noise_only(designs, results: Path, args) -> int:
     """The noise estimate of each design against its floor (module docstring)."""
-    with ft.open_cluster_client(args.scheduler, args.workers) as client:
-        records, _ = ft.run_study(designs, results / "noise", client,
-                                  task=ft.noise_estimate_errors)
+    if args.report_only:
+        records = stored(designs, results / "noise")
+    else:
+        with ft.open_cluster_client(args.scheduler, args.workers) as client:
+            records, _ = ft.run_study(designs, results / "noise", client,
+                                      task=ft.noise_estimate_errors)
     summary = ft.noise_summary(records)
-    lines = [f"noise estimate / noise floor - 1 over {len(records)} designs (seed {args.seed})",
+    lines = [f"noise estimate / noise floor - 1 over {len(records)} of {len(designs)} drawn "
+             f"designs (seed {args.seed})",
              f"  {'order':<8}{'designs':>8}{'within 25 %':>13}  quantiles 5/25/50/75/95 %"]
     for order, row in summary.items():
         quantiles = " ".join(f"{row[k]:+.2f}" for k in row if k.startswith("q"))
