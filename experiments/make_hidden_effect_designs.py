@@ -27,11 +27,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import pathlib
 import time
-
-import numpy as np
 
 from fitting import continuum  # does not import jaxtube
 
@@ -90,14 +87,7 @@ def make(name: str) -> dict:
                                          deflections, p_bar, radius))
     path = TARGET / f"{name}.csv"
     rows = continuum.make_dataset(specs, NOISE_FORCE_N, noise_deflection_mm, seed, path)
-    # Noise floor: the truth at the recorded (noisy) deflections against the recorded forces.
-    squares = []
-    for spec in specs:
-        mine = [row for row in rows if row["curve"] == spec.name]
-        recorded = np.array([row["deflection_mm"] for row in mine]) * 1e-3
-        force = np.array([row["force_N"] for row in mine])
-        squares.extend((spec.model.curve(recorded) - force) ** 2)
-    floor = math.sqrt(float(np.mean(squares)))
+    floor = continuum.noise_floor(specs, rows)
     return {"file": f"tests/data/effects/{name}.csv", "hidden": words,
             "effect": {k: v for k, v in effect.items()}, "seed": seed,
             "specimens": [list(s) for s in specimens], "points_per_curve": POINTS,

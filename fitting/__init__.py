@@ -43,13 +43,13 @@ from ._calibrate.problem import (
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
+from ._cluster import open_client as open_cluster_client
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
 from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
 from ._diagnose.ranking import CandidateRanking, DiagnoseOptions, default_candidates
 from ._diagnose.score import (
     ScoreTest,
-    cross_validated_rmse,
     likelihood_ratio_p_value,
     score_test,
 )
@@ -62,6 +62,8 @@ from ._figures.plots import (
     ranking_figure,
     where_it_fails_figure,
 )
+from ._figures.study import study_figure
+from ._json import json_ready, write_json
 from ._search import BoundedSearch, bounded_search
 from ._shape.files import (
     ShapeFileError,
@@ -82,6 +84,13 @@ from ._shape.registration import (
 )
 from ._shape.score import ShapeScore, score_shape
 from ._shape.surfaces import TubeSurfaces
+from ._study.designs import DesignData, StudyDesign, make_design_data
+from ._study.designs import draw_design as draw_study_design
+from ._study.noise import noise_estimate_errors, noise_summary
+from ._study.run import diagnose_design, run_study
+from ._study.run import stored_record as stored_study_record
+from ._study.summary import study_report, study_summary
+from ._sweep.cluster import sweep_on_cluster
 from ._sweep.result import SweepResult, SweepSettings
 from ._sweep.status import STATUS_MESSAGES, SweepStatus
 from ._sweep.sweep import regime_boundaries, sweep
@@ -91,7 +100,7 @@ __all__ = [
     "RadiusScaling", "Reinforcement", "SelfWeight", "Shear", "ScoreTest", "score_test",
     "UnwrinkledLinearity",
     "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
-    "ResidualVerdict", "compare", "cross_validated_rmse", "default_candidates", "diagnose",
+    "ResidualVerdict", "compare", "default_candidates", "diagnose",
     "fit_problem",
     "before_after_figure", "fit_figure", "ranking_figure", "where_it_fails_figure",
     "CantileverRig", "Convergence", "DEFAULT_SEGMENTS", "DataError", "DataProblem",
@@ -107,6 +116,10 @@ __all__ = [
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
     "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
     "BoundedSearch", "bounded_search",
+    "DesignData", "StudyDesign", "diagnose_design", "draw_study_design", "make_design_data",
+    "open_cluster_client", "run_study", "stored_study_record", "study_figure", "study_report",
+    "study_summary", "sweep_on_cluster", "json_ready", "write_json", "noise_estimate_errors",
+    "noise_summary",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

@@ -22,8 +22,15 @@ into DIR:
 ``jaxtube/data/demo_hidden_effect.csv`` (a hidden effect, made by the independent continuum
 solver; see ``jaxtube/data/README.md``), then says what was hidden.
 
-Exit codes: 0 success; 1 the diagnosis ran but a fit did not converge (outputs written and
-marked); 2 bad input (nothing written).
+No result is lost: each output is built and written on its own, so one that fails (a figure,
+say) is named on stderr and under ``output_failures`` in ``diagnosis.json`` (written last)
+while the others are written; numbers that are undefined (a cross-validation without a valid
+fold design) are ``null`` in the JSON.
+
+Exit codes: 0 a verdict was reached with a converged final model (a baseline that did not
+converge, expected when it misses an effect, is reported in ``report.txt`` and the JSON, not
+here); 1 the final model did not converge, or ``diagnosis.json`` could not be written
+(whatever could be written is); 2 bad input (nothing written).
 """
 
 from __future__ import annotations
@@ -140,37 +147,69 @@ def run_diagnose(args) -> int:
     except (ValueError, FitError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    report = diagnosis_report(diagnosis)
     document = diagnosis.to_json()
     document["wall_time_s"] = round(time.perf_counter() - started, 3)
-    write_directory(args.out, _writers(diagnosis, document, report))
-    print(report)
-    print(f"wrote diagnosis.json, report.txt, parameters.json and figures to {args.out}")
-    converged = all(r.convergence.converged for r in
-                    [diagnosis.baseline] + [s.fit for s in diagnosis.steps])
-    return 0 if converged else 1
+    failures = write_outputs(args.out, diagnosis, document)
+    report_path = args.out / "report.txt"
+    if report_path.exists():
+        print(report_path.read_text(), end="")
+    written = sorted(p.name for p in args.out.iterdir()) if args.out.is_dir() else []
+    print(f"wrote {', '.join(written) or 'nothing'} to {args.out}")
+    if "diagnosis.json" in failures:
+        return 1
+    return 0 if diagnosis.final.convergence.converged else 1
 
 
-def _writers(diagnosis, document, report) -> dict:
+def write_outputs(out: Path, diagnosis, document: dict) -> dict[str, str]:
+    """Build and write every output of a diagnosis into ``out``, each on its own: a writer
+    that fails (building its figure or writing its file) leaves no file, is named on stderr,
+    and the others go on. ``diagnosis.json`` (``document`` with ``output_failures`` added:
+    file name -> error) is written last. Returns those failures (file name -> error)."""
+    failures: dict[str, str] = {}
+
+    def isolated(name, write):
+        def guarded(path):
+            try:
+                write(path)
+            except Exception as error:  # noqa: BLE001 (named, and the other files go on)
+                path.unlink(missing_ok=True)
+                failures[name] = f"{type(error).__name__}: {error}"
+                print(f"error: could not write {name}: {failures[name]}", file=sys.stderr)
+        return guarded
+
+    def write_document(path):
+        document["output_failures"] = dict(failures)
+        write_json(path, document)
+
+    writers = {name: isolated(name, write) for name, write in _writers(diagnosis).items()}
+    writers["diagnosis.json"] = isolated("diagnosis.json", write_document)
+    write_directory(out, writers)
+    return failures
+
+
+def _figure_writer(build):
+    """A writer that builds the figure (``build()``) and saves it: a figure that fails to
+    build fails only its own file."""
+    return lambda path: build().savefig(path, dpi=110)
+
+
+def _writers(diagnosis) -> dict:
+    """File name -> writer ``(path) -> None`` of every output but ``diagnosis.json``."""
     models = [("baseline", diagnosis.baseline)] + [(s.added, s.fit) for s in diagnosis.steps]
-    figures = {}
+    writers = {"report.txt": lambda path: path.write_text(diagnosis_report(diagnosis) + "\n"),
+               "parameters.json": lambda path: write_json(path, diagnosis.final.to_json())}
     for k, (label, result) in enumerate(models):
         added = " + ".join(["baseline"] + [s.added for s in diagnosis.steps[:k]])
-        figures[f"fit_{k}_{label}.png"] = fit_figure(
-            result, title=f"step {k}: {added}: RMSE {result.rmse:.3g} N (noise "
-                          f"{diagnosis.noise:.3g} N)")
-    figures["where_it_fails.png"] = where_it_fails_figure(
-        diagnosis.baseline, diagnosis.baseline_comparison, "baseline")
+        writers[f"fit_{k}_{label}.png"] = _figure_writer(
+            lambda result=result, added=added, k=k: fit_figure(
+                result, title=f"step {k}: {added}: RMSE {result.rmse:.3g} N (noise "
+                              f"{diagnosis.noise:.3g} N)"))
+    writers["where_it_fails.png"] = _figure_writer(lambda: where_it_fails_figure(
+        diagnosis.baseline, diagnosis.baseline_comparison, "baseline"))
     if diagnosis.steps:
-        figures["where_it_fails_final.png"] = where_it_fails_figure(
+        writers["where_it_fails_final.png"] = _figure_writer(lambda: where_it_fails_figure(
             diagnosis.final, diagnosis.final_comparison,
-            "final (+ " + ", ".join(diagnosis.verdict) + ")")
-    figures["ranking.png"] = ranking_figure(diagnosis)
-    figures["before_after.png"] = before_after_figure(diagnosis)
-    parameters = diagnosis.final.to_json()
-    writers = {name: (lambda path, f=figure: f.savefig(path, dpi=110))
-               for name, figure in figures.items()}
-    writers["diagnosis.json"] = lambda path: write_json(path, document)
-    writers["parameters.json"] = lambda path: write_json(path, parameters)
-    writers["report.txt"] = lambda path: path.write_text(report + "\n")
+            "final (+ " + ", ".join(diagnosis.verdict) + ")"))
+    writers["ranking.png"] = _figure_writer(lambda: ranking_figure(diagnosis))
+    writers["before_after.png"] = _figure_writer(lambda: before_after_figure(diagnosis))
     return writers

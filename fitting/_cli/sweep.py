@@ -3,6 +3,9 @@
 ``jaxtube sweep (--params parameters.json | --law NAME ...) --pressure-bar 0.1:0.5:41
 --radius-m 0.03:0.15:41 --length-m 1 --tip-load-N 20 --out DIR``
 
+With ``--scheduler ADDRESS`` the grid is cut into one block per worker of that Dask cluster
+(:func:`fitting.sweep_on_cluster`; the ``study`` extra), for grids too large for one machine.
+
 Ranges are ``START:STOP:N`` (N evenly spaced values, both ends included) or one value.
 Laws: ``--params`` (a fitted spline law, :func:`fitting.load_law`), or ``--law
 tension_field --wall-modulus-N-per-m E_t``, ``--law empirical_2011`` (Breukels 2011),
@@ -42,8 +45,10 @@ import numpy as np
 import jaxtube as jt
 
 from .._calibrate.parameters_file import load_law, without_effects_words
+from .._cluster import open_client
 from .._data.units import BAR_PER_PA, MM_PER_M
 from .._json import write_json
+from .._sweep.cluster import sweep_on_cluster
 from .._sweep.sweep import SweepSettings, sweep
 from .common import bad_output_directory, positive_float, positive_int, write_directory
 
@@ -111,6 +116,10 @@ def add_sweep(subparsers) -> None:
                         help="rigid segments of the cantilever (default 12)")
     parser.add_argument("--chunk-size", type=positive_int, default=None,
                         help="points per compiled call (default 512; bounds the memory)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="sweep on the Dask cluster of this scheduler (e.g. "
+                             "tcp://host:8786; needs the study extra): the grid is cut into "
+                             "one block per worker")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=run_sweep)
@@ -166,7 +175,17 @@ def run_sweep(args) -> int:
     print(f"sweep of {grid[0].size} points ({pressure.size} pressures x {radius.size} radii x "
           f"{args.length_m.size} lengths), {law_text}; compiling (the first chunk takes a "
           "while) ...", file=sys.stderr, flush=True)
-    result = sweep(law, *grid, args.tip_load_N, settings, progress=not args.quiet)
+    if args.scheduler is None:
+        result = sweep(law, *grid, args.tip_load_N, settings, progress=not args.quiet)
+    else:
+        try:
+            client = open_client(args.scheduler)
+        except (OSError, ValueError) as error:
+            print(f"error: --scheduler {args.scheduler}: {error}", file=sys.stderr)
+            return 2
+        with client:
+            result = sweep_on_cluster(client, law, *grid, args.tip_load_N, settings,
+                                      progress=not args.quiet)
     reasons = result.failure_reasons()
     summary = _summary(args, result, reasons, law_text, time.perf_counter() - started)
     figures = {name: heatmap(result, field, title, unit, factor)

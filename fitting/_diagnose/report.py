@@ -19,6 +19,21 @@ def _ranking_lines(rows) -> list[str]:
     return lines
 
 
+def convergence_lines(diagnosis) -> list[str]:
+    """Words on fits that did not converge: the baseline (expected when it misses an effect;
+    the verdict rests on the final model) and the final model (then the verdict is not to be
+    trusted: ``jaxtube diagnose`` exits 1)."""
+    lines = []
+    baseline, final = diagnosis.baseline.convergence, diagnosis.final.convergence
+    if not baseline.converged and diagnosis.steps:
+        lines.append(f"baseline fit did not converge ({baseline.message}): expected of a model "
+                     "that misses an effect; the verdict rests on the final model")
+    if not final.converged:
+        lines.append(f"FINAL MODEL DID NOT CONVERGE ({final.message}): the verdict and its "
+                     "numbers are not to be trusted")
+    return lines
+
+
 def diagnosis_report(diagnosis) -> str:
     """The before/after table, the rankings, where the baseline fails and the verdict."""
     lines = []
@@ -27,6 +42,7 @@ def diagnosis_report(diagnosis) -> str:
     source = "given" if estimate is None else (
         f"estimated from the data, model-free: +- {estimate.standard_error_N:.2g} N")
     lines.append(f"noise: {diagnosis.noise:.4g} N ({source})")
+    lines += convergence_lines(diagnosis)
     lines.append("(unabsorbed: the share of a candidate's effect on the curves that refitting "
                  "the current model's parameters cannot reproduce)")
     lines.append("")

@@ -1,7 +1,7 @@
 """Statistics of candidate effects at a fitted model: the score test at the null, chi^2,
-the likelihood-ratio p-value (with the boundary mixture), the linearised leave-one-curve-out
-error, and how much of a candidate's effect the model's
-fitted parameters can absorb (formulas and sources in :mod:`fitting._diagnose.ranking`).
+the likelihood-ratio p-value (with the boundary mixture), and how much of a candidate's
+effect the model's fitted parameters can absorb (formulas and sources in
+:mod:`fitting._diagnose.ranking`).
 
 All work on the residuals and the Jacobian of a fit's last evaluation (``FitResult.residual``
 and ``FitResult.jacobian``, every coordinate's column): no new evaluation, no compilation.
@@ -120,35 +120,6 @@ def likelihood_ratio_p_value(statistic: float, dof: int, at_bound: int) -> float
             scipy.stats.chi2.sf(statistic, df))
         total += weight * tail
     return min(total, 1.0)
-
-
-def cross_validated_rmse(result: FitResult) -> float:
-    """Leave-one-curve-out RMSE [N], linearised: per curve one Gauss-Newton step from the
-    optimum without that curve's rows, then that curve predicted (module docstring).
-    Coordinates at a bound stay there; directions the remaining data do not determine are
-    left unchanged (pseudo-inverse)."""
-    problem = result.problem
-    free = np.asarray(problem.free_index)
-    lower, upper = problem.free_bounds
-    x = result.free_values
-    movable = ~(np.isclose(x, lower) | np.isclose(x, upper))
-    r_all = result.residual
-    jac_all = result.jacobian[:, free][:, movable]
-    curves, width = problem.batch.force.shape
-    total = 0.0
-    for c in range(curves):
-        rows = np.zeros(r_all.size, bool)
-        rows[c * width:(c + 1) * width] = True
-        keep = ~rows
-        j_keep = jac_all[keep]
-        normal = j_keep.T @ j_keep
-        scale = np.sqrt(np.maximum(np.diag(normal), 1e-300))
-        step = -(np.linalg.pinv(normal / np.outer(scale, scale), rcond=1e-10, hermitian=True)
-                 @ (j_keep.T @ r_all[keep] / scale)) / scale
-        predicted = r_all[rows] + jac_all[rows] @ step
-        total += float(predicted @ predicted)
-    weight = problem.batch.weight.reshape(-1)
-    return float(problem.noise * math.sqrt(total / np.sum(weight)))
 
 
 # --------------------------------------------------------------------------------------------

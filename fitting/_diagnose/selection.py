@@ -7,6 +7,7 @@ import dataclasses
 import math
 
 import numpy as np
+import scipy.linalg
 
 from .._calibrate.fit import fit_problem
 from .._calibrate.outcome import FitOutcome
@@ -192,12 +193,38 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
     return current, removed, words
 
 
+#: A coordinate is held as undetermined by :func:`least_determined` when its column adds less
+#: than this fraction of the largest (unit-scaled) column's norm to the span of the columns
+#: before it (pivoted QR): its information is below 1e-8 of the best determined one's.
+UNDETERMINED_PIVOT = 1e-4
+
+
+def least_determined(result: FitResult) -> list[str]:
+    """The free coordinates the data determine least, one per direction they do not see:
+    the trailing pivots of a rank-revealing QR factorisation (Businger & Golub 1965) of the
+    unit-scaled Jacobian columns, past the first whose pivot falls below
+    :data:`UNDETERMINED_PIVOT` of the largest. Used when every coordinate's standard error
+    is flagged: a few undetermined directions (every pressure exponent at a single
+    pressure, say) inflate the errors of all the coordinates they mix with, and holding
+    them all would leave nothing to fit."""
+    jac = result.jacobian[:, np.asarray(result.problem.free_index)]
+    norms = np.linalg.norm(jac, axis=0)
+    _, r, pivots = scipy.linalg.qr(jac / np.maximum(norms, 1e-300), mode="economic",
+                                   pivoting=True)
+    size = np.abs(np.diag(r))
+    rank = int(np.sum(size > UNDETERMINED_PIVOT * max(float(size[0]), 1e-300)))
+    return [result.problem.free_names[k] for k in sorted(pivots[rank:])]
+
+
 def hold_undetermined_where_left(result: FitResult, fit_options):
     """Hold the coordinates ``result`` leaves undetermined (infinite standard error) where it
     left them and refit the rest from there (the baseline and the refined law do this: they
-    would only drift along them). Returns ``(model, held names)``."""
+    would only drift along them); when every coordinate is flagged, only the least
+    determined ones (:func:`least_determined`). Returns ``(model, held names)``."""
     held = [name for name, se in zip(result.problem.free_names, result.free_standard_errors)
             if not math.isfinite(se)]
+    if len(held) == len(result.problem.free_names):
+        held = least_determined(result)
     if held:
         kept = [name for name in result.problem.free_names if name not in held]
         result = fit_problem(result.problem.with_free(kept, result.vector), fit_options)

@@ -1,2 +1,2 @@
-"""Design sweeps over many specimens (:mod:`.sweep`), their settings and result
-(:mod:`.result`) and statuses (:mod:`.status`)."""
+"""Design sweeps over many specimens (:mod:`.sweep`), on a Dask cluster (:mod:`.cluster`),
+their settings and result (:mod:`.result`) and statuses (:mod:`.status`)."""

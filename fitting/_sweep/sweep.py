@@ -334,6 +334,25 @@ def _to_host(values) -> np.ndarray:
     return np.asarray(values)
 
 
+def checked_specimens(pressure, radius, length, tip_load) -> list[np.ndarray]:
+    """The specimens broadcast to one shape (float arrays), or ``ValueError`` naming the
+    first that is not finite, not positive (pressure, radius, length) or negative (tip
+    load), or that there are no points."""
+    arrays = np.broadcast_arrays(*(np.asarray(v, float) for v in
+                                   (pressure, radius, length, tip_load)))
+    for name, values, lowest in zip(("pressure", "radius", "length", "tip_load"), arrays,
+                                    (0, 0, 0, None)):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"sweep: {name} must be finite")
+        if lowest is not None and not np.all(values > lowest):
+            raise ValueError(f"sweep: {name} must be positive, found {values.min():g}")
+    if np.any(arrays[3] < 0):
+        raise ValueError("sweep: tip_load must be >= 0 (it acts downwards)")
+    if arrays[0].size == 0:
+        raise ValueError("sweep: no points")
+    return arrays
+
+
 def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_load,
           settings: SweepSettings = SweepSettings(), devices=None,
           progress: bool = False) -> SweepResult:
@@ -354,21 +373,10 @@ def sweep(law: jt.AbstractMomentLaw | TubeModel, pressure, radius, length, tip_l
     docstring). Raises ``ValueError`` for non-positive or non-finite specimens.
     """
     model = law if isinstance(law, TubeModel) else TubeModel(bending_law=law)
-    arrays = np.broadcast_arrays(*(np.asarray(v, float) for v in
-                                   (pressure, radius, length, tip_load)))
+    arrays = checked_specimens(pressure, radius, length, tip_load)
     shape = arrays[0].shape
-    for name, values, lowest in zip(("pressure", "radius", "length", "tip_load"), arrays,
-                                    (0, 0, 0, None)):
-        if not np.all(np.isfinite(values)):
-            raise ValueError(f"sweep: {name} must be finite")
-        if lowest is not None and not np.all(values > lowest):
-            raise ValueError(f"sweep: {name} must be positive, found {values.min():g}")
-    if np.any(arrays[3] < 0):
-        raise ValueError("sweep: tip_load must be >= 0 (it acts downwards)")
     devices = tuple(jax.devices() if devices is None else devices)
     count = int(np.prod(shape))
-    if count == 0:
-        raise ValueError("sweep: no points")
     size = -(-min(settings.chunk_size, count) // len(devices)) * len(devices)
     padded = -(-count // size) * size
     flat = [np.concatenate([a.reshape(-1), np.repeat(a.reshape(-1)[-1:], padded - count)])

@@ -92,7 +92,7 @@ from .closed_forms import (
     fichter_shear_stiffness,
     tension_field_cantilever,
 )
-from .dataset import CurveSpec, make_dataset, prescribed_deflections
+from .dataset import CurveSpec, make_dataset, noise_floor, prescribed_deflections
 from .laws import BendingLaw, law_from_moment, linear_law, reinforced_law, tension_field_law
 from .scalar import (
     BAR,
@@ -115,6 +115,7 @@ __all__ = [
     "law_from_moment",
     "linear_law",
     "make_dataset",
+    "noise_floor",
     "prescribed_deflections",
     "reinforced_law",
     "tension_field_cantilever",

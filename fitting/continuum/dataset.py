@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -96,3 +97,17 @@ def make_dataset(
                     }
                 )
     return rows
+
+
+def noise_floor(curves: Sequence[CurveSpec], rows: Sequence[dict]) -> float:
+    """The noise floor [N] of a synthetic dataset: the RMSE of the noise-free truth (each
+    curve's model) at the recorded, noisy deflections against the recorded forces (``rows``
+    of :func:`make_dataset`): the smallest RMSE any model of force at measured deflection
+    can reach."""
+    squares = []
+    for spec in curves:
+        mine = [row for row in rows if row["curve"] == spec.name]
+        recorded = np.array([row["deflection_mm"] for row in mine]) * 1e-3
+        force = np.array([row["force_N"] for row in mine])
+        squares.extend((spec.model.curve(recorded) - force) ** 2)
+    return math.sqrt(float(np.mean(squares)))

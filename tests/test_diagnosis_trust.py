@@ -1,0 +1,214 @@
+"""The diagnosis you can trust (issue 34). No result is lost: documents with ``null`` for
+every non-finite number; each output written on its own; exit status 0 with a converged
+final model, 1 without. And the simulation study's machinery: designs diagnosed on a local
+Dask cluster of two workers, stored as they end (a second run computes nothing), and tables
+that account for every design (the study itself, ``experiments/diagnosis_study.py``, is not a
+test; its ``--quick`` dozen takes too long for CI, so a two-design variant of the same
+functions runs here).
+
+Data: ``tests/data/diagnosis/three_radii_no_cv.csv``, made by the independent continuum
+solver through the study's generator (``fitting.make_design_data`` of ``StudyDesign(index=0,
+seed=7, specimens=((0.2, 0.05, 1.2), (0.2, 0.075, 1.2), (0.2, 0.1, 1.2)), points=8,
+noise_force_N=0.05, noise_deflection_mm=0.02)``: a tension-field tube, nothing hidden). Three
+curves of eight points at three radii: too few for the blocked cross-validation (a fold's
+leverage is 0.94), so its error is undefined (NaN), which once crashed the command at its
+very end. The model is small (6 segments, two candidates) and its compiled program is
+shared by every diagnosis of this file (same shape, same model).
+"""
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fitting as ft
+from fitting._cli import diagnose as diagnose_command
+from fitting._cli import main
+
+DATA = Path(__file__).parent / "data" / "diagnosis" / "three_radii_no_cv.csv"
+CANDIDATES = ("radius_scaling", "self_weight")
+ARGS = ["--quiet", "--segments", "6", "--candidates", ",".join(CANDIDATES)]
+THREE_RADII = ((0.2, 0.05, 1.2), (0.2, 0.075, 1.2), (0.2, 0.1, 1.2))
+
+
+def strict_json(path: Path):
+    """The document at ``path``; NaN or infinity (not JSON) is an error."""
+    def refuse(constant):
+        raise ValueError(f"{path}: {constant} is not JSON")
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_write_json_turns_nan_and_infinity_anywhere_into_null(tmp_path):
+    document = {"a": math.nan, "b": [1.0, math.inf, (-math.inf, 2)],
+                "c": {"d": np.float64("nan"), "e": np.array([1.0, np.nan]),
+                      "f": np.float32(np.inf), "g": np.int64(3), "h": np.bool_(True)},
+                "i": (np.array([[np.nan, 0.5]]),), 4: "key made a string", "j": None}
+    ft.write_json(tmp_path / "doc.json", document)
+    assert strict_json(tmp_path / "doc.json") == {
+        "a": None, "b": [1.0, None, [None, 2]],
+        "c": {"d": None, "e": [1.0, None], "f": None, "g": 3, "h": True},
+        "i": [[[None, 0.5]]], "4": "key made a string", "j": None}
+    with pytest.raises(TypeError, match="not JSON serialisable: object"):
+        ft.json_ready({"x": object()})
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    """One run of ``jaxtube diagnose`` on the three-radii data, with the Diagnosis it made."""
+    out = tmp_path_factory.mktemp("diagnose") / "out"
+    made = []
+    original = diagnose_command.diagnose
+
+    def keep(*args, **kwargs):
+        made.append(original(*args, **kwargs))
+        return made[-1]
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(diagnose_command, "diagnose", keep)
+        code = main(["diagnose", str(DATA), "--out", str(out), *ARGS])
+    return code, out, made[0]
+
+
+def test_too_few_curves_for_cross_validation_is_diagnosed_end_to_end(diagnosed):
+    code, out, _ = diagnosed
+    assert code == 0
+    document = strict_json(out / "diagnosis.json")
+    assert document["output_failures"] == {}
+    assert document["baseline"]["cv_rmse_N"] is None  # undefined, written as null
+    assert document["final"]["converged"] is True
+    assert any("Cross-validation left out" in s for s in document["statements"])
+    assert math.isfinite(document["noise_N"]) and document["final"]["rmse_N"] > 0
+    strict_json(out / "parameters.json")
+    assert "verdict: " in (out / "report.txt").read_text()
+    for name in ("fit_0_baseline.png", "where_it_fails.png", "ranking.png",
+                 "before_after.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+
+
+def test_a_failing_writer_loses_only_its_own_file(diagnosed, tmp_path, monkeypatch, capsys):
+    _, _, diagnosis = diagnosed
+
+    def broken(diagnosis):
+        raise RuntimeError("no room for the bars")
+
+    monkeypatch.setattr(diagnose_command, "ranking_figure", broken)
+    out = tmp_path / "out"
+    failures = diagnose_command.write_outputs(out, diagnosis, diagnosis.to_json())
+    assert failures == {"ranking.png": "RuntimeError: no room for the bars"}
+    assert "could not write ranking.png: RuntimeError: no room" in capsys.readouterr().err
+    assert not (out / "ranking.png").exists()
+    assert strict_json(out / "diagnosis.json")["output_failures"] == failures
+    for name in ("report.txt", "parameters.json", "fit_0_baseline.png", "before_after.png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_exit_status_is_1_only_when_the_final_model_did_not_converge(diagnosed, tmp_path,
+                                                                     monkeypatch, capsys):
+    _, _, diagnosis = diagnosed
+    assert not diagnosis.steps  # the final model is the baseline
+    stalled = dataclasses.replace(diagnosis.baseline.convergence, converged=False,
+                                  message="iteration cap reached")
+    unconverged = dataclasses.replace(
+        diagnosis, baseline=dataclasses.replace(diagnosis.baseline, convergence=stalled))
+    monkeypatch.setattr(diagnose_command, "diagnose", lambda *args, **kwargs: unconverged)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(DATA), "--out", str(out), *ARGS]) == 1
+    assert "FINAL MODEL DID NOT CONVERGE (iteration cap reached)" in capsys.readouterr().out
+    assert strict_json(out / "diagnosis.json")["final"]["converged"] is False
+
+
+def _rate_or_none(value) -> bool:
+    return value is None or 0.0 <= value <= 1.0
+
+
+def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_path):
+    """Two tiny designs (the shape of the data above: three curves of eight points), one with
+    nothing hidden and one with self-weight over two lengths and two pressures, on a local
+    cluster of two workers (threads of this process, so the compiled model is shared)."""
+    designs = [ft.StudyDesign(index=0, seed=7, specimens=THREE_RADII, points=8,
+                              noise_force_N=0.05, noise_deflection_mm=0.02),
+               ft.StudyDesign(index=1, seed=7, specimens=((0.2, 0.05, 1.2), (0.3, 0.075, 0.8),
+                                                          (0.2, 0.1, 0.8)),
+                              points=8, noise_force_N=0.05, noise_deflection_mm=0.02,
+                              hidden=(("self_weight", 0.5),))]
+    assert designs[1].separable("self_weight") and not designs[0].separable("self_weight")
+    with ft.open_cluster_client(workers=2, processes=False) as client:
+        assert len(client.scheduler_info()["workers"]) == 2
+        records, ran = ft.run_study(designs, tmp_path, client, progress=False,
+                                    candidates=CANDIDATES, segments=6)
+        again, ran_again = ft.run_study(designs, tmp_path, client, progress=False,
+                                        candidates=CANDIDATES, segments=6)
+    assert ran == 2 and ran_again == 0 and again == records
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{d.name}.json" for d in designs]
+    assert [r["name"] for r in records] == [d.name for d in designs]
+    assert all(r["error"] is None for r in records), [r.get("traceback") for r in records]
+    assert records[1]["snr"]["self_weight"] > 0 and records[1]["separable"]["self_weight"]
+    summary = ft.study_summary(records)
+    assert summary["designs"] == summary["diagnosed"] + summary["failed"] == 2
+    assert sum(map(sum, summary["confusion"]["counts"])) == summary["diagnosed"]
+    assert summary["confusion"]["hidden"] == ["none", "self_weight"]
+    assert summary["false_alarm"]["nulls"] == 1
+    assert sum(row["effects"] for row in summary["power"]) == 1
+    rates = [summary["false_alarm"]["rate"], summary["power_resolvable"]["found_clean"],
+             summary["final_rmse_over_floor"]["within"], summary["noise_estimate_error"]["within"]]
+    rates += [row[key] for row in summary["power"] for key in ("found", "found_clean")]
+    assert all(_rate_or_none(rate) for rate in rates), rates
+    assert summary["seconds"]["median"] > 0 and summary["seconds"]["median_6_curves_warm"] is None
+    report = ft.study_report(summary)
+    assert "false alarms on null designs: " in report and "n/a" in report
+    ft.write_json(tmp_path.parent / "summary.json", summary)
+    strict_json(tmp_path.parent / "summary.json")
+    ft.study_figure(records).savefig(tmp_path.parent / "study.png")
+    assert (tmp_path.parent / "study.png").stat().st_size > 10_000
+
+
+def test_noise_only_records_match_the_estimate_the_diagnosis_uses():
+    """The study's noise-only route (no diagnosis) sees the data as the diagnosis does: its
+    order-2 estimate over the floor is the one of the committed CSV (read by
+    ``load_measurements``), whose floor is the generator's."""
+    design = ft.StudyDesign(index=0, seed=7, specimens=THREE_RADII, points=8,
+                            noise_force_N=0.05, noise_deflection_mm=0.02)
+    record = ft.noise_estimate_errors(design)
+    floor = ft.make_design_data(design, with_snr=False).noise_floor_N
+    assert record["noise_floor_N"] == floor
+    expected = ft.estimate_noise(ft.load_measurements(DATA)) / floor - 1.0
+    assert record["error_order_2"] == pytest.approx(expected, rel=1e-12)
+    assert record["error_order_1"] != record["error_order_2"] != record["error_order_3"]
+    summary = ft.noise_summary([record, dict(record, error_order_3=None)])
+    assert summary["order_3"]["designs"] == 1 and summary["order_2"]["designs"] == 2
+    assert all(0.0 <= row["within"] <= 1.0 for row in summary.values())
+
+
+def test_when_every_coordinate_is_flagged_only_the_undetermined_directions_are_held(
+        monkeypatch):
+    """A study design (one pressure, large deflection noise) flagged every coordinate of its
+    baseline as undetermined, and holding them all left nothing to fit ("ValueError: nothing
+    to fit"). Then only one coordinate per direction the data do not see is held: here the
+    third column is the sum of the first two (one such direction)."""
+    from fitting._diagnose import selection
+
+    rng = np.random.default_rng(0)
+    columns = rng.standard_normal((12, 3))
+    columns[:, 2] = columns[:, 0] + columns[:, 1]
+    refits = []
+
+    class Problem:
+        free_names = ("a", "b", "c")
+        free_index = (0, 1, 2)
+
+        def with_free(self, names, vector):
+            refits.append(tuple(names))
+            return self
+
+    fake = type("Result", (), {"problem": Problem(), "jacobian": columns * [1.0, 1e3, 2.0],
+                               "free_standard_errors": np.full(3, np.inf), "vector": None})()
+    monkeypatch.setattr(selection, "fit_problem", lambda problem, options: fake)
+    held = selection.least_determined(fake)
+    assert len(held) == 1 and held[0] in Problem.free_names
+    _, still_held = selection.hold_undetermined_where_left(fake, None)
+    assert still_held == held and refits == [tuple(n for n in "abc" if n not in held)]
+    fake.jacobian[:, 2] += rng.standard_normal(12)  # determined: nothing is held
+    assert selection.least_determined(fake) == []
