@@ -13,10 +13,10 @@ record is written to ``RESULTS/designs/<name>.json`` as it ends; a second run wi
 ``RESULTS/summary.json``, ``RESULTS/report.txt`` and ``RESULTS/diagnosis_study.png`` are
 written from every stored record of the drawn designs.
 
-    python experiments/diagnosis_study.py --quick                # a dozen small designs
-    python experiments/diagnosis_study.py --designs 300 --workers 2
-    python experiments/diagnosis_study.py --designs 300 --report-only   # tables only
-    python experiments/diagnosis_study.py --designs 300 --noise-only    # the noise estimate
+    python -m experiments.diagnosis_study --quick                # a dozen small designs
+    python -m experiments.diagnosis_study --designs 300 --workers 2
+    python -m experiments.diagnosis_study --designs 300 --report-only   # tables only
+    python -m experiments.diagnosis_study --designs 300 --noise-only    # the noise estimate
 
 ``--noise-only`` makes each design's data and compares the model-free noise estimate of
 difference orders 1, 2 (the default) and 3 with the noise floor, without a diagnosis
