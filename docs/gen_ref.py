@@ -40,6 +40,12 @@ TOPICS: dict[str, dict[str, tuple[str, ...]]] = {
             "RESULT_MESSAGES", "result_messages",
         ),
         "Many solves at once": ("map_members", "each_member"),
+        "Dynamics": (
+            "modes", "Modes", "simulate_dynamics", "History", "Damping", "InertiaParameters",
+            "air_density", "MassProperties", "mass_properties", "mass_matrix", "DynamicLoad",
+            "dynamic_load", "SupportMotion", "AbstractTimeFunction", "StepFunction",
+            "RampFunction", "HarmonicFunction", "TableFunction",
+        ),
         "Mechanics": (
             "Configuration", "configuration", "initial_state", "reference_geometry",
             "total_energy", "rotation_matrix", "rotation_vector",

@@ -150,5 +150,8 @@ __all__ = [
     "SpecError", "load_spec", "Connection", "SpringJointTopology", "Strut", "Structure",
     "StructureParameters", "Support", "Tube", "TubeKite", "arc_through_tips", "arc_tube",
     "build_structure", "cantilever", "double_taper", "polyline_tube", "straight_tube", "UNITS",
-    "unit_factor",
+    "unit_factor", "InertiaParameters", "air_density", "MassProperties", "mass_matrix",
+    "mass_properties", "Modes", "modes", "Damping", "History", "simulate_dynamics",
+    "AbstractTimeFunction", "DynamicLoad", "HarmonicFunction", "RampFunction", "StepFunction",
+    "SupportMotion", "TableFunction", "dynamic_load",
 ]

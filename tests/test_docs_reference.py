@@ -3,6 +3,7 @@ pages from ``__all__`` (no MkDocs needed to check it)."""
 
 import importlib.util
 import re
+import types
 from pathlib import Path
 
 import pytest
@@ -25,6 +26,17 @@ def test_reference_lists_every_public_name_once(package):
     documented = re.findall(rf"^::: {re.escape(package)}\.(\w+)$", markdown, re.M)
     names = importlib.import_module(package).__all__
     assert sorted(documented) == sorted(names)
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_all_holds_every_public_name(package):
+    """A name re-exported by a package but left out of its ``__all__`` would be public and
+    undocumented."""
+    module = importlib.import_module(package)
+    public = {name for name, value in vars(module).items()
+              if not name.startswith("_") and not isinstance(value, types.ModuleType)
+              and name not in ("annotations",)}
+    assert sorted(public - set(module.__all__)) == []
 
 
 def test_every_package_has_a_reference_page():
