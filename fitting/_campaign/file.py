@@ -1,0 +1,514 @@
+"""The campaign file (TOML): one kite model, how to hang it, and its measured cases.
+
+A campaign names the structure (a kite_fem ``initial.npz``), its suspension and gravity,
+the model's parameter values (``[model]``, see :class:`KiteModel`), the hang schedule
+(``[hang]``), named line sets (``[line_sets]``: chains of nodes whose neighbours are joined
+by lines, e.g. the trailing edge), which model tube each marker group lies on (``[tubes]``),
+the measured lengths (``[lengths]``) and the cases (``[[cases]]``: name, pressure, loads,
+marker file, lengths row, role). Every key is documented in ``docs/spec-format.md``
+("Campaign files"); paths are relative to the campaign file.
+
+:func:`read_campaign` checks everything it can without solving: unknown keys, a node or a
+line set the model does not have, a marker or lengths file that is missing, a negative
+pressure or mass, a calibration case without markers. Every problem is collected and
+reported at once (:class:`CampaignError`: file, key and reason); nothing is written by a
+command whose campaign does not read.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+import jaxtube as jt
+
+LAW_FORMS = ("curvature", "moment")
+ROLES = ("calibrate", "predict")
+ROUTES = ("gravity", "stages", "drive")
+
+
+class CampaignError(ValueError):
+    """An invalid campaign (or model) file; ``problems`` lists every :class:`jaxtube.Problem`
+    found (``source: key: reason``)."""
+
+    def __init__(self, problems):
+        self.problems = tuple(problems)
+        count = len(self.problems)
+        lines = [f"{count} problem{'s' if count != 1 else ''} in campaign file "
+                 f"{self.problems[0].source}:"]
+        super().__init__("\n".join(lines + [f"  {p}" for p in self.problems]))
+
+
+@dataclasses.dataclass(frozen=True)
+class KiteModel:
+    """The parameter values a campaign's kite is solved with.
+
+    Attributes:
+        law_form: how ``bending_scale`` acts on Breukels' 2011 bending law: ``"curvature"``
+            (:class:`jaxtube.CurvatureScaledLaw`: stiffness x scale, the wrinkling and
+            collapse moments kept) or ``"moment"`` (:class:`jaxtube.ScaledLaw`: the whole
+            curve x scale, as the peers scale it).
+        bending_scale: the factor (1: the 2011 law as published).
+        rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
+    """
+
+    law_form: str = "curvature"
+    bending_scale: float = 1.0
+    rest_length_factors: dict = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"law_form": self.law_form, "bending_scale": self.bending_scale,
+                "rest_length_factors": dict(self.rest_length_factors)}
+
+
+@dataclasses.dataclass(frozen=True)
+class CaseLoad:
+    """A dead load on one node: ``force_N [3]`` (a mass's weight along gravity, or a mass's
+    weight or a force along ``direction``); ``mass_along_gravity``: it is a hanging mass."""
+
+    node: int
+    force_N: np.ndarray
+    mass_along_gravity: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class CampaignCase:
+    """One measured case.
+
+    Attributes:
+        name: the case's name (unique).
+        pressure_bar: tube overpressure [bar].
+        loads: the dead loads besides gravity.
+        markers: the marker CSV, or ``None`` (loads only: predicted).
+        measured_lengths_m: ``{length name: measured length [m]}`` (may be empty).
+        role: ``"calibrate"`` (fitted to) or ``"predict"``.
+        route: how the case is hung: ``"gravity"`` (no loads, one stage), ``"stages"``
+            (gravity and loads stepped by ``[hang] load_stages``) or ``"drive"`` (one hanging
+            mass reached by displacement control, :func:`jaxtube.drive_to_dead_load`).
+        published_rms_mm: ``{source: RMS [mm]}`` published for the case (reports only).
+    """
+
+    name: str
+    pressure_bar: float
+    loads: tuple
+    markers: Path | None
+    measured_lengths_m: dict
+    role: str
+    route: str
+    published_rms_mm: dict
+
+
+@dataclasses.dataclass(frozen=True)
+class HangSchedule:
+    """How every case is hung (``[hang]``).
+
+    Attributes:
+        max_newton_steps: Newton steps per solve.
+        load_stages: fractions of gravity and loads, one solve each (route ``"stages"``;
+            route ``"gravity"`` takes the full load in the first and no step after).
+        first_stage_tension_smoothing: the lines' slack-taut blend (strain) of the first
+            stage of route ``"stages"`` (``None``: the model's own width throughout).
+        drive_steps, drive_increment_m: the displacement-controlled solves of route
+            ``"drive"`` and their largest step [m].
+    """
+
+    max_newton_steps: int = 400
+    load_stages: tuple = (0.2, 0.4, 0.6, 0.8, 1.0)
+    first_stage_tension_smoothing: float | None = None
+    drive_steps: int = 24
+    drive_increment_m: float = 0.2
+
+
+@dataclasses.dataclass(frozen=True)
+class Campaign:
+    """A read campaign file (module docstring).
+
+    Attributes:
+        path: the campaign file.
+        kite_fem: the kite_fem model read (:class:`jaxtube.KiteFemModel`).
+        suspension: the fixed nodes.
+        gravity: ``[3]`` gravitational acceleration [m/s^2].
+        model: the model's parameter values (:class:`KiteModel`).
+        hang: the hang schedule.
+        line_sets: ``{name: ((node_a, node_b), ...)}``: the lines of each set.
+        tubes: ``{marker group: model tube name}``.
+        canopy_group: the marker group on the canopy.
+        length_pairs: ``{length name: (node_a, node_b)}``.
+        cases: the cases, in file order.
+    """
+
+    path: Path
+    kite_fem: jt.KiteFemModel
+    suspension: tuple
+    gravity: np.ndarray
+    model: KiteModel
+    hang: HangSchedule
+    line_sets: dict
+    tubes: dict
+    canopy_group: str
+    length_pairs: dict
+    cases: tuple
+
+    def case(self, name: str) -> CampaignCase:
+        for case in self.cases:
+            if case.name == name:
+                return case
+        raise KeyError(f"{self.path}: no case named {name!r} (cases: "
+                       f"{', '.join(c.name for c in self.cases)})")
+
+
+class _Checker:
+    """Collects problems while reading; ``need`` reads one key with a type check."""
+
+    def __init__(self, source: Path):
+        self.report = jt.ProblemReport(str(source))
+
+    def add(self, key, message):
+        self.report.add(key, message)
+
+    def number(self, table, key, where, default=None, minimum=None, positive=False):
+        value = table.get(key, default)
+        if value is None:
+            if default is None and key not in table:
+                self.add(f"{where}.{key}", "missing (expected a number)")
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or \
+                not math.isfinite(value):
+            self.add(f"{where}.{key}", f"expected a finite number, found {value!r}")
+            return None
+        if positive and not value > 0:
+            self.add(f"{where}.{key}", f"expected a positive number, found {value!r}")
+            return None
+        if minimum is not None and value < minimum:
+            self.add(f"{where}.{key}", f"expected a number >= {minimum}, found {value!r}")
+            return None
+        return float(value)
+
+    def node(self, value, where, node_count, movable=None):
+        if isinstance(value, bool) or not isinstance(value, int) or \
+                not 0 <= value < node_count:
+            self.add(where, f"expected a node of the model (an integer 0..{node_count - 1}), "
+                            f"found {value!r}")
+            return None
+        if movable is not None and value not in movable:
+            self.add(where, f"node {value} is held or fixed in the model (no element moves "
+                            "it, or it is a suspension node): a load there does nothing")
+            return None
+        return int(value)
+
+    def unknown_keys(self, table, known, where):
+        for key in table:
+            if key not in known:
+                self.add(f"{where}.{key}" if where else key,
+                         f"unknown key (expected one of: {', '.join(known)})")
+
+
+def read_model_values(table, where, checker, line_sets) -> KiteModel:
+    """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
+    known = ("law_form", "bending_scale", "rest_length_factors")
+    for key in table:
+        if key not in known:
+            checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
+                                          f"{', '.join(known)})")
+    form = table.get("law_form", "curvature")
+    if form not in LAW_FORMS:
+        checker.add(f"{where}.law_form", f"expected one of {', '.join(LAW_FORMS)}, "
+                                         f"found {form!r}")
+    scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
+    factors = {}
+    given = table.get("rest_length_factors", {})
+    if not isinstance(given, dict):
+        checker.add(f"{where}.rest_length_factors", "expected a table {line set = factor}")
+        given = {}
+    for name in given:
+        if name not in line_sets:
+            checker.add(f"{where}.rest_length_factors.{name}",
+                        f"unknown line set (the campaign's line sets: "
+                        f"{', '.join(line_sets) or 'none'})")
+            continue
+        factors[name] = checker.number(given, name, f"{where}.rest_length_factors",
+                                       positive=True)
+    return KiteModel(form, scale or 1.0, factors)
+
+
+def read_model_file(path, campaign: Campaign) -> KiteModel:
+    """A model.json written by ``jaxtube shape`` (or by hand): the ``[model]`` keys as JSON,
+    checked against ``campaign``'s line sets."""
+    import json
+
+    path = Path(path)
+    checker = _Checker(path)
+    try:
+        table = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
+    except json.JSONDecodeError as error:
+        raise CampaignError([jt.Problem(str(path), f"not JSON: {error}")]) from None
+    if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
+        raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
+                                                   "'model'", "model")])
+    model = read_model_values(table["model"], "model", checker, campaign.line_sets)
+    if len(checker.report):
+        raise CampaignError(checker.report.problems)
+    return model
+
+
+def _line_set(value, where, checker, model) -> tuple:
+    """The node pairs of a line set: a chain ``[n0, n1, ...]`` (neighbours joined) or pairs
+    ``[[a, b], ...]``; each pair must be joined by a spring of the model."""
+    if not isinstance(value, list) or len(value) < 2:
+        checker.add(where, "expected a chain of nodes [n0, n1, ...] or pairs [[a, b], ...]")
+        return ()
+    pairs = [tuple(p) for p in value] if all(isinstance(p, list) for p in value) else \
+        list(zip(value[:-1], value[1:]))
+    joined = {tuple(sorted(p)) for p in np.asarray(model.spring_nodes).tolist()}
+    out = []
+    for a, b in pairs:
+        a = checker.node(a, where, model.node_count)
+        b = checker.node(b, where, model.node_count)
+        if a is None or b is None:
+            continue
+        if tuple(sorted((a, b))) not in joined:
+            checker.add(where, f"no line of the model joins nodes {a} and {b}")
+            continue
+        out.append((a, b))
+    return tuple(out)
+
+
+def _read_lengths(table, base, checker, model):
+    """``(pairs {name: (a, b)}, rows {row value: {name: length [m]}}, case column)``."""
+    pairs = {}
+    for name, pair in table.get("pairs", {}).items():
+        where = f"lengths.pairs.{name}"
+        if not (isinstance(pair, list) and len(pair) == 2):
+            checker.add(where, f"expected two nodes [a, b], found {pair!r}")
+            continue
+        a, b = (checker.node(n, where, model.node_count) for n in pair)
+        if a is not None and b is not None:
+            pairs[name] = (a, b)
+    rows = {}
+    if "file" not in table:
+        if pairs:
+            checker.add("lengths.file", "missing (the CSV of measured lengths [m])")
+        return pairs, rows, None
+    path = base / str(table["file"])
+    column = str(table.get("case_column", "case"))
+    try:
+        with open(path, newline="") as handle:
+            reader = csv.DictReader(handle)
+            header = reader.fieldnames or []
+            for name in [column, *pairs]:
+                if name not in header:
+                    checker.add("lengths.file", f"{path}: line 1: no column {name!r}")
+            if len(checker.report) == 0:
+                for line, row in enumerate(reader, start=2):
+                    try:
+                        rows[row[column].strip()] = {n: float(row[n]) for n in pairs}
+                    except (TypeError, ValueError):
+                        checker.add("lengths.file", f"{path}: line {line}: expected numbers "
+                                                    f"[m] in columns {', '.join(pairs)}")
+    except FileNotFoundError:
+        checker.add("lengths.file", f"file not found: {path}")
+    return pairs, rows, column
+
+
+def _read_load(load, where, checker, model, movable, gravity):
+    if not isinstance(load, dict):
+        checker.add(where, "expected a table {node = ..., mass_kg = ... | force_N = ..., "
+                           "direction = [x, y, z]}")
+        return None
+    checker.unknown_keys(load, ("node", "mass_kg", "force_N", "direction"), where)
+    node = checker.node(load.get("node"), f"{where}.node", model.node_count, movable)
+    if ("mass_kg" in load) == ("force_N" in load):
+        checker.add(where, "expected exactly one of mass_kg [kg] and force_N [N]")
+        return None
+    key = "mass_kg" if "mass_kg" in load else "force_N"
+    size = checker.number(load, key, where, minimum=0.0)
+    direction = load.get("direction")
+    if direction is None:
+        if key == "force_N":
+            checker.add(f"{where}.direction", "missing (a force needs a direction [x, y, z])")
+            return None
+        unit = gravity / np.linalg.norm(gravity)
+    else:
+        vector = np.asarray(direction, dtype=float) if isinstance(direction, list) and \
+            len(direction) == 3 and all(isinstance(v, int | float) for v in direction) else None
+        if vector is None or not np.linalg.norm(vector) > 0:
+            checker.add(f"{where}.direction", f"expected a non-zero vector [x, y, z], found "
+                                              f"{direction!r}")
+            return None
+        unit = vector / np.linalg.norm(vector)
+    if node is None or size is None:
+        return None
+    magnitude = size * float(np.linalg.norm(gravity)) if key == "mass_kg" else size
+    return CaseLoad(node, magnitude * unit, key == "mass_kg" and direction is None)
+
+
+def read_campaign(path) -> Campaign:
+    """Read and check a campaign file (module docstring); raises :class:`CampaignError`
+    listing every problem (file, key, reason)."""
+    path = Path(path)
+    base = path.parent
+    checker = _Checker(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
+    except tomllib.TOMLDecodeError as error:
+        raise CampaignError([jt.Problem(str(path), f"not TOML: {error}")]) from None
+    checker.unknown_keys(data, ("structure", "model", "hang", "line_sets", "tubes",
+                                "lengths", "cases"), "")
+    structure = data.get("structure", {})
+    checker.unknown_keys(structure, ("kite_fem", "suspension", "gravity_m_s2"), "structure")
+    if "kite_fem" not in structure:
+        raise CampaignError([jt.Problem(str(path), "missing (the kite_fem initial.npz of the "
+                                                   "kite)", "structure.kite_fem")])
+    try:
+        model = jt.read_kite_fem(base / str(structure["kite_fem"]))
+    except FileNotFoundError:
+        raise CampaignError([jt.Problem(str(path), f"file not found: "
+                                        f"{base / str(structure['kite_fem'])}",
+                                        "structure.kite_fem")]) from None
+    except ValueError as error:
+        raise CampaignError([jt.Problem(str(path), str(error), "structure.kite_fem")]) from None
+    n = model.node_count
+    suspension = tuple(checker.node(v, "structure.suspension", n)
+                       for v in structure.get("suspension", []))
+    if not suspension:
+        checker.add("structure.suspension", "missing (the nodes the kite hangs from)")
+    gravity = np.asarray(structure.get("gravity_m_s2", [0.0, 0.0, 9.81]), dtype=float)
+    if gravity.shape != (3,) or not np.isfinite(gravity).all() or not np.linalg.norm(gravity):
+        checker.add("structure.gravity_m_s2", "expected a non-zero vector [x, y, z] [m/s^2]")
+        gravity = np.array([0.0, 0.0, 9.81])
+    movable = set(range(n)) - set(model.element_free_nodes().tolist()) - set(suspension)
+
+    line_sets = {name: _line_set(value, f"line_sets.{name}", checker, model)
+                 for name, value in data.get("line_sets", {}).items()}
+    model_values = read_model_values(data.get("model", {}), "model", checker, line_sets)
+
+    hang_table = data.get("hang", {})
+    checker.unknown_keys(hang_table, [f.name for f in dataclasses.fields(HangSchedule)], "hang")
+    defaults = HangSchedule()
+    stages = tuple(hang_table.get("load_stages", defaults.load_stages))
+    if not stages or not all(isinstance(s, int | float) and 0 < s <= 1 for s in stages) or \
+            stages[-1] != 1:
+        checker.add("hang.load_stages", f"expected fractions in (0, 1] ending at 1, found "
+                                        f"{list(stages)}")
+    smoothing = checker.number(hang_table, "first_stage_tension_smoothing", "hang",
+                               default=float("nan"), positive=True) \
+        if "first_stage_tension_smoothing" in hang_table else None
+    hang = HangSchedule(
+        int(checker.number(hang_table, "max_newton_steps", "hang",
+                           default=defaults.max_newton_steps, positive=True) or 1),
+        tuple(float(s) for s in stages), smoothing,
+        int(checker.number(hang_table, "drive_steps", "hang", default=defaults.drive_steps,
+                           positive=True) or 1),
+        checker.number(hang_table, "drive_increment_m", "hang",
+                       default=defaults.drive_increment_m, positive=True) or 1.0)
+
+    tubes_table = dict(data.get("tubes", {}))
+    canopy_group = str(tubes_table.pop("canopy_group", "CAN"))
+    tubes = {}
+    for group, ends in tubes_table.items():
+        where = f"tubes.{group}"
+        if not (isinstance(ends, list) and len(ends) == 2):
+            checker.add(where, f"expected the tube's two end nodes [a, b], found {ends!r}")
+            continue
+        a, b = (checker.node(v, where, n) for v in ends)
+        if a is not None and b is not None:
+            segments = beam_path(model, a, b)
+            if not segments:
+                checker.add(where, f"no chain of beams joins nodes {a} and {b}")
+            tubes[group] = segments
+    if not tubes_table:
+        checker.add("tubes", "missing (which tube of the model each marker group lies on)")
+
+    pairs, length_rows, column = _read_lengths(data.get("lengths", {}), base, checker, model)
+    cases, names = [], set()
+    for k, case in enumerate(data.get("cases", [])):
+        where = f"cases[{k}]"
+        checker.unknown_keys(case, ("name", "pressure_bar", "loads", "markers", "lengths_row",
+                                    "role", "route", "published_rms_mm"), where)
+        name = str(case.get("name", f"case{k}"))
+        if name in names:
+            checker.add(f"{where}.name", f"case {name!r} named twice")
+        names.add(name)
+        where = f"cases[{k}] ({name})"
+        pressure = checker.number(case, "pressure_bar", where, positive=True)
+        loads = tuple(filter(None, (_read_load(load, f"{where}.loads[{j}]", checker, model,
+                                               movable, gravity)
+                                    for j, load in enumerate(case.get("loads", [])))))
+        markers = None
+        if "markers" in case:
+            markers = base / str(case["markers"])
+            if not markers.is_file():
+                checker.add(f"{where}.markers", f"marker file not found: {markers}")
+        role = case.get("role", "calibrate" if markers else "predict")
+        if role not in ROLES:
+            checker.add(f"{where}.role", f"expected one of {', '.join(ROLES)}, found {role!r}")
+        elif role == "calibrate" and "markers" not in case:
+            checker.add(f"{where}.role", "a calibration case needs markers (no 'markers' "
+                                         "file given)")
+        lengths = {}
+        if "lengths_row" in case:
+            row = str(case["lengths_row"])
+            if row not in length_rows and column is not None:
+                checker.add(f"{where}.lengths_row", f"no row with {column!r} = {row} in the "
+                                                    "lengths file")
+            lengths = length_rows.get(row, {})
+        route = case.get("route", _default_route(loads))
+        if route not in ROUTES:
+            checker.add(f"{where}.route", f"expected one of {', '.join(ROUTES)}, found "
+                                          f"{route!r}")
+        elif route == "drive" and not (len(loads) == 1 and loads[0].mass_along_gravity):
+            checker.add(f"{where}.route", "'drive' needs exactly one load, a mass_kg without "
+                                          "a direction (it hangs along gravity)")
+        elif route == "gravity" and loads:
+            checker.add(f"{where}.route", "'gravity' takes no loads")
+        cases.append(CampaignCase(name, pressure or 1.0, loads, markers, lengths, role, route,
+                                  dict(case.get("published_rms_mm", {}))))
+    if not cases:
+        checker.add("cases", "missing (at least one [[cases]] table)")
+    if len(checker.report):
+        raise CampaignError(checker.report.problems)
+    return Campaign(path, model, suspension, gravity, model_values, hang, line_sets, tubes,
+                    canopy_group, pairs, tuple(cases))
+
+
+def _default_route(loads) -> str:
+    if not loads:
+        return "gravity"
+    return "drive" if len(loads) == 1 and loads[0].mass_along_gravity else "stages"
+
+
+def beam_path(model, start: int, end: int) -> tuple:
+    """The beams along the shortest chain of beams from node ``start`` to ``end`` (breadth
+    first over ``model.beam_nodes``): ``((node_a, node_b, radius [m]), ...)`` in order, the
+    radius half the beam's diameter; ``()`` if no chain joins them."""
+    neighbours: dict[int, list] = {}
+    for row, (a, b) in enumerate(np.asarray(model.beam_nodes).tolist()):
+        neighbours.setdefault(a, []).append((b, row))
+        neighbours.setdefault(b, []).append((a, row))
+    came_from = {start: None}
+    frontier = [start]
+    while frontier and end not in came_from:
+        following = []
+        for node in frontier:
+            for other, row in neighbours.get(node, []):
+                if other not in came_from:
+                    came_from[other] = (node, row)
+                    following.append(other)
+        frontier = following
+    if end not in came_from or start == end:
+        return ()
+    path, node = [], end
+    while came_from[node] is not None:
+        previous, row = came_from[node]
+        path.append((previous, node, float(model.beam_diameter[row]) / 2))
+        node = previous
+    return tuple(reversed(path))

@@ -1,0 +1,112 @@
+"""A campaign's kite: imported per case with the model's values, its tube surfaces and canopy
+for the markers, its line sets and measured lengths.
+
+The structure is imported once per case (:func:`jaxtube.import_kite_fem`: the case's
+pressure; every case has the same structure and parameter shapes), the case's loads are set
+as dead forces on their nodes, and the model's values (:class:`KiteModel`) are put into the
+parameters: the bending law's factor (``law_form``: :class:`jaxtube.CurvatureScaledLaw` or
+:class:`jaxtube.ScaledLaw` over Breukels' 2011 law) and the rest lengths of each named line
+set times its factor. Values are parameters, not structure: one compiled program serves
+every value (:mod:`fitting._campaign.solve`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+import jaxtube as jt
+
+from .._shape.surfaces import TubeSurfaces
+from .file import Campaign, CampaignCase, KiteModel
+
+
+def line_set_rows(campaign: Campaign, name: str) -> np.ndarray:
+    """Rows of the model's ``spring_matrix`` (= its lines, same order) of line set ``name``
+    (every spring joining one of the set's node pairs), ``[k]`` int."""
+    springs = np.sort(np.asarray(campaign.kite_fem.spring_nodes, dtype=np.int64), axis=1)
+    wanted = {tuple(sorted(pair)) for pair in campaign.line_sets[name]}
+    return np.flatnonzero([tuple(pair) in wanted for pair in springs.tolist()])
+
+
+def with_model_values(campaign: Campaign, params: jt.StructureParameters,
+                      model: KiteModel) -> jt.StructureParameters:
+    """``params`` with ``model``'s bending factor on every tube's law and the rest lengths of
+    each line set times its factor (the laws must already be of ``model.law_form``:
+    :func:`import_case`)."""
+    scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
+    laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(model.bending_scale))
+                 if isinstance(law, scaled) else law for law in params.bending_laws)
+    params = eqx.tree_at(lambda p: p.bending_laws, params, laws)
+    rest = params.elements.line_rest_length
+    for name, factor in model.rest_length_factors.items():
+        rest = rest.at[line_set_rows(campaign, name)].multiply(factor)
+    return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
+
+
+def import_case(campaign: Campaign, case: CampaignCase, model: KiteModel) -> jt.KiteFemImport:
+    """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""
+    law = (jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0)
+           if model.law_form == "curvature" else
+           jt.ScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0))
+    suspension = campaign.suspension
+    # The importer's own V3 loads stay off (zero masses; its load nodes are set to a
+    # suspension node so that they exist in any model): the case's loads follow.
+    imported = jt.import_kite_fem(campaign.kite_fem, pressure_bar=case.pressure_bar,
+                                  bending_law=law, suspension=suspension,
+                                  gravity=campaign.gravity, centre_node=suspension[0],
+                                  tip_nodes=(suspension[0], suspension[0]))
+    params = imported.params
+    forces: dict[int, np.ndarray] = {}
+    for load in case.loads:
+        node = int(imported.node_index[load.node])
+        forces[node] = forces.get(node, np.zeros(3)) + load.force_N
+    for node, force in forces.items():
+        params = jt.with_node_dead_load(imported.structure, params, node, force)
+    return dataclasses.replace(imported, params=with_model_values(campaign, params, model))
+
+
+def tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:
+    """The marker groups' tubes (``[tubes]``: beams with half their diameter as radius) and
+    the canopy triangles at kite positions ``[N, 3]`` [m] (default: the model file's)."""
+    model = campaign.kite_fem
+    rows = [(group, a, b, radius, radius) for group, segments in campaign.tubes.items()
+            for a, b, radius in segments]
+    if positions is None:
+        positions = model.node_position
+    return TubeSurfaces.from_segments(positions, rows, canopy_triangles(model))
+
+
+def canopy_triangles(model: jt.KiteFemModel) -> np.ndarray:
+    """``[t, 3]`` canopy triangles: the 3-cliques of canopy springs and beams. A canopy
+    spring has both ends on tubes or on triangles of springs (the canopy is a mesh with
+    diagonals; bridle lines form trees of lines and pulleys, without triangles)."""
+    springs = np.asarray(model.spring_nodes, dtype=np.int64).tolist()
+    beams = np.asarray(model.beam_nodes, dtype=np.int64).tolist()
+
+    def neighbours_of(edges):
+        neighbours: dict[int, set] = {}
+        for a, b in edges:
+            neighbours.setdefault(a, set()).add(b)
+            neighbours.setdefault(b, set()).add(a)
+        return neighbours
+
+    linked = neighbours_of(springs)
+    mesh = {n for edge in beams for n in edge}
+    mesh |= {n for a, b in springs if linked[a] & linked[b] for n in (a, b)}
+    edges = {tuple(sorted(e)) for e in beams}
+    edges |= {tuple(sorted(e)) for e in springs if e[0] in mesh and e[1] in mesh}
+    neighbours = neighbours_of(edges)
+    triangles = {tuple(sorted((a, b, c))) for a, b in edges
+                 for c in neighbours[a] & neighbours[b]}
+    return np.asarray(sorted(triangles), int).reshape(-1, 3)
+
+
+def model_lengths(campaign: Campaign, positions) -> dict:
+    """``{length name: distance [m]}`` of ``[lengths.pairs]`` at kite positions ``[N, 3]``."""
+    positions = np.asarray(positions, dtype=float)
+    return {name: float(np.linalg.norm(positions[a] - positions[b]))
+            for name, (a, b) in campaign.length_pairs.items()}
