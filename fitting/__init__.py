@@ -6,7 +6,8 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
 and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`), and shapes
 against measured markers (:func:`load_markers`, :class:`TubeSurfaces`, :func:`register`,
-:func:`marker_rms`, :func:`score_shape`, :func:`fit_to_markers`).
+:func:`marker_rms`, :func:`score_shape`), and campaigns of measured kite shapes
+(:func:`read_campaign`, :class:`CaseSolver`).
 The independent continuum reference solver is :mod:`fitting.continuum`; the command line is
 :mod:`fitting._cli` (``jaxtube``).
 """
@@ -43,6 +44,24 @@ from ._calibrate.problem import (
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
+from ._campaign.file import (
+    Campaign,
+    CampaignCase,
+    CampaignError,
+    CaseLoad,
+    HangSchedule,
+    KiteModel,
+    read_campaign,
+    read_model_file,
+)
+from ._campaign.kite import (
+    campaign_lengths,
+    campaign_tube_surfaces,
+    import_campaign_case,
+    line_set_rows,
+    with_model_values,
+)
+from ._campaign.solve import CaseSolution, CaseSolver
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
 from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
@@ -69,7 +88,6 @@ from ._shape.files import (
     load_triangles,
     load_tubes,
 )
-from ._shape.fit import MarkerFit, fit_to_markers
 from ._shape.markers import MarkerSet, load_markers, spanwise_family
 from ._shape.registration import (
     MarkerDistances,
@@ -104,7 +122,11 @@ __all__ = [
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
-    "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
+    "score_shape", "spanwise_family",
+    "Campaign", "CampaignCase", "CampaignError", "CaseLoad", "CaseSolution", "CaseSolver",
+    "HangSchedule", "KiteModel", "campaign_lengths", "campaign_tube_surfaces",
+    "import_campaign_case", "line_set_rows", "read_campaign", "read_model_file",
+    "with_model_values",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

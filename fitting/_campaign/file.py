@@ -20,12 +20,17 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-import tomllib
+import sys
 from pathlib import Path
 
 import numpy as np
 
 import jaxtube as jt
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 LAW_FORMS = ("curvature", "moment")
 ROLES = ("calibrate", "predict")

@@ -36,7 +36,7 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
                       model: KiteModel) -> jt.StructureParameters:
     """``params`` with ``model``'s bending factor on every tube's law and the rest lengths of
     each line set times its factor (the laws must already be of ``model.law_form``:
-    :func:`import_case`)."""
+    :func:`import_campaign_case`)."""
     scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
     laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(model.bending_scale))
                  if isinstance(law, scaled) else law for law in params.bending_laws)
@@ -47,7 +47,8 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
 
 
-def import_case(campaign: Campaign, case: CampaignCase, model: KiteModel) -> jt.KiteFemImport:
+def import_campaign_case(campaign: Campaign, case: CampaignCase,
+                         model: KiteModel) -> jt.KiteFemImport:
     """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""
     law = (jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0)
            if model.law_form == "curvature" else
@@ -69,7 +70,7 @@ def import_case(campaign: Campaign, case: CampaignCase, model: KiteModel) -> jt.
     return dataclasses.replace(imported, params=with_model_values(campaign, params, model))
 
 
-def tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:
+def campaign_tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:
     """The marker groups' tubes (``[tubes]``: beams with half their diameter as radius) and
     the canopy triangles at kite positions ``[N, 3]`` [m] (default: the model file's)."""
     model = campaign.kite_fem
@@ -105,7 +106,7 @@ def canopy_triangles(model: jt.KiteFemModel) -> np.ndarray:
     return np.asarray(sorted(triangles), int).reshape(-1, 3)
 
 
-def model_lengths(campaign: Campaign, positions) -> dict:
+def campaign_lengths(campaign: Campaign, positions) -> dict:
     """``{length name: distance [m]}`` of ``[lengths.pairs]`` at kite positions ``[N, 3]``."""
     positions = np.asarray(positions, dtype=float)
     return {name: float(np.linalg.norm(positions[a] - positions[b]))

@@ -29,7 +29,7 @@ import numpy as np
 import jaxtube as jt
 
 from .file import Campaign, CampaignCase, KiteModel
-from .kite import import_case
+from .kite import import_campaign_case
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -63,15 +63,18 @@ class CaseSolution:
     compile_seconds: float
 
 
+# Compiled programs of this process, shared by every CaseSolver of the same kite and hang
+# schedule (a V3 program takes a minute or more to compile): key -> (program, seconds).
+_PROGRAMS: dict = {}
+
+
 class CaseSolver:
-    """Solves a campaign's cases, compiling each route's program once (``compile_seconds``
-    per program key)."""
+    """Solves a campaign's cases, compiling each route's program once per process (shared
+    by every solver of the same model file, suspension and hang schedule)."""
 
     def __init__(self, campaign: Campaign):
         self.campaign = campaign
         self.solver = jt.NewtonKKT(max_steps=campaign.hang.max_newton_steps)
-        self._compiled: dict = {}
-        self.compile_seconds: dict = {}
 
     def _schedule(self, case: CampaignCase, model_blend: float):
         stages = self.campaign.hang.load_stages
@@ -84,10 +87,11 @@ class CaseSolver:
     def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
         drive_node = int(imported.node_index[case.loads[0].node]) if case.route == "drive" \
             else None
-        key = ("drive" if drive_node is not None else "hang",
+        key = (str(self.campaign.kite_fem.path), self.campaign.suspension, self.campaign.hang,
+               "drive" if drive_node is not None else "hang",
                type(imported.params.bending_laws[0]).__name__, drive_node)
-        if key in self._compiled:
-            return key
+        if key in _PROGRAMS:
+            return _PROGRAMS[key]
         structure, solver, hang = imported.structure, self.solver, self.campaign.hang
         if drive_node is None:
             def run(params, load_factors, blends):
@@ -110,20 +114,20 @@ class CaseSolver:
 
             arguments = (imported.params,)
         started = time.perf_counter()
-        self._compiled[key] = jax.jit(run).lower(*arguments).compile()
-        self.compile_seconds[key] = time.perf_counter() - started
-        return key
+        program = jax.jit(run).lower(*arguments).compile()
+        _PROGRAMS[key] = (program, time.perf_counter() - started)
+        return _PROGRAMS[key]
 
     def solve(self, case: CampaignCase, model: KiteModel) -> CaseSolution:
         """Solve ``case`` with ``model``'s values (compiled ahead, then timed warm)."""
-        imported = import_case(self.campaign, case, model)
-        key = self._program(imported, case)
+        imported = import_campaign_case(self.campaign, case, model)
+        program, compile_seconds = self._program(imported, case)
         blend = float(imported.params.elements.tension_smoothing)
         arguments = (imported.params,)
         if case.route != "drive":
             arguments += tuple(map(jnp.asarray, self._schedule(case, blend)))
         started = time.perf_counter()
-        result = jax.block_until_ready(self._compiled[key](*arguments))
+        result = jax.block_until_ready(program(*arguments))
         seconds = time.perf_counter() - started
         if case.route != "drive":
             stages, solution, drive = result, result, None
@@ -154,4 +158,4 @@ class CaseSolver:
         positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
         return CaseSolution(case, imported, solution, positions,
                             bool(np.asarray(solution.converged)[-1]), iterations,
-                            stage_converged, drive, words, seconds, self.compile_seconds[key])
+                            stage_converged, drive, words, seconds, compile_seconds)

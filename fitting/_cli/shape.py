@@ -1,0 +1,139 @@
+"""``jaxtube shape``: a kite against its measured 3-D shapes, from a campaign file.
+
+``jaxtube shape compare CAMPAIGN.toml [--model model.json] [--cases A B ...] [--no-figures]
+--out DIR``: every case with markers (or the ``--cases`` named) solved with the campaign's
+``[model]`` (or ``--model``) and scored against its markers and measured lengths: ``cases.csv``,
+``groups.csv``, ``markers.csv``, ``lengths.csv``, ``comparison.json``, ``rms_per_case.png``,
+``<case>_shape.png`` (:mod:`fitting._campaign.report`).
+
+``jaxtube shape predict CAMPAIGN.toml [--model model.json] [--cases A B ...] --out DIR``:
+every case (or those named) solved: ``DIR/<case>/positions.csv`` (``node,x_m,y_m,z_m``, every
+node of the model file; none when the solve did not converge) and ``DIR/<case>/summary.json``
+(``converged``, ``seconds`` warm).
+
+The campaign format: ``docs/spec-format.md`` ("Campaign files"); the workflow:
+``docs/shapes.md``. Exit codes: 0 success; 1 written, but a solve did not converge (or, for
+``compare``, a registration did not meet its tolerance); 2 bad input (every problem named
+with file, key and reason; nothing written).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .._campaign.file import CampaignError, read_campaign, read_model_file
+from .._campaign.report import compare_cases, comparison_writers, prediction_writers
+from .._campaign.solve import CaseSolver
+from .._shape.files import ShapeFileError
+from .._shape.markers import load_markers
+from .common import bad_output_directory, write_directory
+
+
+def add_shape(subparsers) -> None:
+    """Register ``shape`` (and its ``compare`` and ``predict``) on argparse subparsers."""
+    parser = subparsers.add_parser(
+        "shape", help="a kite against measured 3-D shapes (campaign file)",
+        description="Solve a campaign's cases and compare them with their markers, or "
+                    "predict them.")
+    commands = parser.add_subparsers(title="shape commands", metavar="COMMAND")
+    for name, help_text, run in (
+            ("compare", "solve the cases with markers and score them", run_compare),
+            ("predict", "solve every case and write its node positions", run_predict)):
+        command = commands.add_parser(name, help=help_text, description=help_text)
+        command.add_argument("campaign", type=Path, help="campaign file (TOML)")
+        command.add_argument("--model", type=Path, default=None,
+                             help="model.json with the model's values (default: the "
+                                  "campaign's [model])")
+        command.add_argument("--cases", nargs="+", default=None,
+                             help="case names (default: every case"
+                                  + (" with markers)" if name == "compare" else ")"))
+        if name == "compare":
+            command.add_argument("--no-figures", action="store_true",
+                                 help="write the tables and JSON only")
+        command.add_argument("--out", type=Path, required=True, help="output directory")
+        command.set_defaults(run=run)
+    parser.set_defaults(run=lambda args: (parser.print_help(sys.stderr), 2)[1])
+
+
+def _read(args, need_markers: bool):
+    """``(campaign, model, case names)`` or ``None`` after saying why (exit code 2)."""
+    if bad_output_directory(args.out):
+        return None
+    try:
+        campaign = read_campaign(args.campaign)
+        model = campaign.model if args.model is None else read_model_file(args.model, campaign)
+        names = [c.name for c in campaign.cases if c.markers or not need_markers] \
+            if args.cases is None else list(args.cases)
+        for name in names:
+            case = campaign.case(name)
+            if need_markers:
+                if case.markers is None:
+                    raise KeyError(f"{campaign.path}: case {name!r} has no markers to "
+                                   "compare with")
+                load_markers(case.markers)  # every marker file checked before any solve
+    except (CampaignError, ShapeFileError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return None
+    except KeyError as error:
+        print(f"error: {error.args[0]}", file=sys.stderr)
+        return None
+    if not names:
+        print(f"error: {args.campaign}: no case to {'compare' if need_markers else 'predict'}",
+              file=sys.stderr)
+        return None
+    return campaign, model, names
+
+
+def run_compare(args) -> int:
+    """Run ``shape compare``; returns the exit code."""
+    read = _read(args, need_markers=True)
+    if read is None:
+        return 2
+    campaign, model, names = read
+    solver = CaseSolver(campaign)
+    records = compare_cases(campaign, model, names, solver,
+                            log=lambda text: print(text, file=sys.stderr, flush=True))
+    write_directory(args.out, comparison_writers(campaign, model, records,
+                                                 figures=not args.no_figures))
+    print(f"{'case':>10} {'RMS mm':>8} {'undef. mm':>9} {'canopy mm':>9} {'lengths':>8} "
+          f"{'warm s':>7} converged")
+    for record in records:
+        score, solved = record["score"], record["solved"]
+        lengths = record["lengths"]
+        error = (sum(abs(m - v) / v for v, m, _ in lengths.values()) / len(lengths)
+                 if lengths else float("nan"))
+        canopy = score.canopy_rms_mm
+        print(f"{solved.case.name:>10} {score.rms_mm:8.1f} {record['undeformed'].rms_mm:9.1f} "
+              f"{'-' if canopy is None else format(canopy, '.1f'):>9} {100 * error:7.1f}% "
+              f"{solved.seconds:7.2f} {solved.converged}")
+    print(f"wrote {args.out}")
+    failed = [r["solved"].case.name for r in records
+              if not (r["solved"].converged and r["score"].registration.converged)]
+    if failed:
+        print(f"warning: not converged (solve or registration): {', '.join(failed)}",
+              file=sys.stderr)
+    return 1 if failed else 0
+
+
+def run_predict(args) -> int:
+    """Run ``shape predict``; returns the exit code."""
+    read = _read(args, need_markers=False)
+    if read is None:
+        return 2
+    campaign, model, names = read
+    solver = CaseSolver(campaign)
+    failed = []
+    for name in names:
+        solved = solver.solve(campaign.case(name), model)
+        folder = args.out / name
+        write_directory(folder, prediction_writers(solved, model, campaign))
+        if not solved.converged:
+            failed.append(name)
+            (folder / "positions.csv").unlink(missing_ok=True)  # never an older run's
+        print(f"{name}: converged {solved.converged}, warm {solved.seconds:.3f} s, Newton "
+              f"{solved.newton_iterations}; wrote {folder}", flush=True)
+    if failed:
+        print(f"warning: not converged: {', '.join(failed)} (no positions.csv written)",
+              file=sys.stderr)
+    return 1 if failed else 0
