@@ -47,6 +47,32 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
 
 
+def model_value(model: KiteModel, name: str) -> float:
+    """One of ``model``'s values by name: ``"bending_scale"`` or
+    ``"rest_length_factors.SET"`` (a line set without a factor: 1)."""
+    if name == "bending_scale":
+        return model.bending_scale
+    prefix, _, line_set = name.partition(".")
+    if prefix != "rest_length_factors" or not line_set:
+        raise ValueError(f"unknown model value {name!r} (expected 'bending_scale' or "
+                         "'rest_length_factors.SET')")
+    return model.rest_length_factors.get(line_set, 1.0)
+
+
+def with_values(model: KiteModel, names, values) -> KiteModel:
+    """``model`` with its values ``names`` (:func:`model_value`) set to ``values`` (numbers
+    or traced scalars)."""
+    factors = dict(model.rest_length_factors)
+    scale = model.bending_scale
+    for k, name in enumerate(names):
+        model_value(model, name)  # validates the name
+        if name == "bending_scale":
+            scale = values[k]
+        else:
+            factors[name.partition(".")[2]] = values[k]
+    return dataclasses.replace(model, bending_scale=scale, rest_length_factors=factors)
+
+
 def import_campaign_case(campaign: Campaign, case: CampaignCase,
                          model: KiteModel) -> jt.KiteFemImport:
     """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""

@@ -29,7 +29,7 @@ import numpy as np
 import jaxtube as jt
 
 from .file import Campaign, CampaignCase, KiteModel
-from .kite import import_campaign_case
+from .kite import import_campaign_case, model_value, with_model_values, with_values
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -84,39 +84,75 @@ class CaseSolver:
         return stages, ((model_blend if first is None else first),) + \
             (model_blend,) * (len(stages) - 1)
 
-    def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
+    def _route(self, imported: jt.KiteFemImport, case: CampaignCase):
+        """``(key, run, arguments)``: the case's route as a function of the parameters (and
+        the stages and blend widths), its cache key and its arguments."""
         drive_node = int(imported.node_index[case.loads[0].node]) if case.route == "drive" \
             else None
         key = (str(self.campaign.kite_fem.path), self.campaign.suspension, self.campaign.hang,
                "drive" if drive_node is not None else "hang",
                type(imported.params.bending_laws[0]).__name__, drive_node)
-        if key in _PROGRAMS:
-            return _PROGRAMS[key]
         structure, solver, hang = imported.structure, self.solver, self.campaign.hang
         if drive_node is None:
             def run(params, load_factors, blends):
                 return jt.hang_kite(structure, params, solver=solver, load_factors=load_factors,
                                     tension_smoothing=blends)
 
-            arguments = (imported.params, *map(jnp.asarray, self._schedule(
+            return key, run, (imported.params, *map(jnp.asarray, self._schedule(
                 case, float(imported.params.elements.tension_smoothing))))
-        else:
-            def run(params):
-                gravity_only = jt.with_node_dead_load(structure, params, drive_node,
-                                                      jnp.zeros(3))
-                stages = jt.hang_kite(structure, gravity_only, solver=solver,
-                                      load_factors=(1.0,) * len(hang.load_stages))
-                hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
-                driven = jt.drive_to_dead_load(
-                    structure, params, drive_node, params.gravity, initial=hung, solver=solver,
-                    steps=hang.drive_steps, max_increment=hang.drive_increment_m)
-                return stages, driven
 
-            arguments = (imported.params,)
-        started = time.perf_counter()
-        program = jax.jit(run).lower(*arguments).compile()
-        _PROGRAMS[key] = (program, time.perf_counter() - started)
+        def run(params):
+            gravity_only = jt.with_node_dead_load(structure, params, drive_node, jnp.zeros(3))
+            stages = jt.hang_kite(structure, gravity_only, solver=solver,
+                                  load_factors=(1.0,) * len(hang.load_stages))
+            hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
+            driven = jt.drive_to_dead_load(
+                structure, params, drive_node, params.gravity, initial=hung, solver=solver,
+                steps=hang.drive_steps, max_increment=hang.drive_increment_m)
+            return stages, driven
+
+        return key, run, (imported.params,)
+
+    def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
+        key, run, arguments = self._route(imported, case)
+        if key not in _PROGRAMS:
+            started = time.perf_counter()
+            program = jax.jit(run).lower(*arguments).compile()
+            _PROGRAMS[key] = (program, time.perf_counter() - started)
         return _PROGRAMS[key]
+
+    def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
+        """The case's equilibrium and its tangents with respect to the logarithms of
+        ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``),
+        by forward mode through the solve (implicit function theorem; a drive only supplies
+        the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
+        [m per unit log value], converged)`` in the model file's numbering (held nodes do
+        not move). One more compiled program per route and set of names."""
+        names = tuple(names)
+        plain = import_campaign_case(self.campaign, case, KiteModel(model.law_form))
+        key, run, arguments = self._route(plain, case)
+        theta = jnp.log(jnp.asarray([model_value(model, name) for name in names]))
+        campaign = self.campaign
+
+        def positions(theta, params, *schedule):
+            values = with_values(model, names, jnp.exp(theta))
+            result = run(with_model_values(campaign, params, values), *schedule)
+            solution = result if case.route != "drive" else jax.tree_util.tree_map(
+                lambda x: x[None], result[1].equilibrium)
+            x = solution.node_position[-1]
+            return x, (x, solution.converged[-1])
+
+        key = ("tangents", names) + key
+        if key not in _PROGRAMS:
+            started = time.perf_counter()
+            program = jax.jit(jax.jacfwd(positions, has_aux=True)).lower(
+                theta, *arguments).compile()
+            _PROGRAMS[key] = (program, time.perf_counter() - started)
+        jacobian, (x, converged) = _PROGRAMS[key][0](theta, *arguments)
+        mapped = plain.node_index >= 0
+        tangent = np.zeros(plain.model.node_position.shape + (len(names),))
+        tangent[mapped] = np.asarray(jacobian)[plain.node_index[mapped]]
+        return plain.kite_positions(np.asarray(x)), tangent, bool(converged)
 
     def solve(self, case: CampaignCase, model: KiteModel) -> CaseSolution:
         """Solve ``case`` with ``model``'s values (compiled ahead, then timed warm)."""
