@@ -47,20 +47,20 @@ from ._calibrate.result import FitResult, ParameterEstimate
 from ._campaign.file import (
     Campaign,
     CampaignCase,
-    CampaignError,
     CaseLoad,
     HangSchedule,
-    KiteModel,
     read_campaign,
-    read_model_file,
 )
 from ._campaign.kite import (
     campaign_lengths,
     campaign_tube_surfaces,
     import_campaign_case,
     line_set_rows,
+    model_value,
     with_model_values,
+    with_values,
 )
+from ._campaign.model import CampaignError, KiteModel, read_model_file
 from ._campaign.solve import CaseSolution, CaseSolver
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
@@ -98,6 +98,7 @@ from ._shape.registration import (
     register,
 )
 from ._shape.score import ShapeScore, score_shape
+from ._shape.smooth import SmoothScore, continuous_radius, smooth_shape_score
 from ._shape.surfaces import TubeSurfaces
 from ._sweep.result import SweepResult, SweepSettings
 from ._sweep.status import STATUS_MESSAGES, SweepStatus
@@ -125,8 +126,9 @@ __all__ = [
     "score_shape", "spanwise_family",
     "Campaign", "CampaignCase", "CampaignError", "CaseLoad", "CaseSolution", "CaseSolver",
     "HangSchedule", "KiteModel", "campaign_lengths", "campaign_tube_surfaces",
-    "import_campaign_case", "line_set_rows", "read_campaign", "read_model_file",
-    "with_model_values",
+    "import_campaign_case", "line_set_rows", "model_value", "read_campaign",
+    "read_model_file", "with_model_values", "with_values", "SmoothScore", "continuous_radius",
+    "smooth_shape_score",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import math
 import sys
 from pathlib import Path
 
@@ -27,48 +26,15 @@ import numpy as np
 
 import jaxtube as jt
 
+from .model import CampaignError, KiteModel, ProblemCollector, read_model_values
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-LAW_FORMS = ("curvature", "moment")
 ROLES = ("calibrate", "predict")
 ROUTES = ("gravity", "stages", "drive")
-
-
-class CampaignError(ValueError):
-    """An invalid campaign (or model) file; ``problems`` lists every :class:`jaxtube.Problem`
-    found (``source: key: reason``)."""
-
-    def __init__(self, problems):
-        self.problems = tuple(problems)
-        count = len(self.problems)
-        lines = [f"{count} problem{'s' if count != 1 else ''} in campaign file "
-                 f"{self.problems[0].source}:"]
-        super().__init__("\n".join(lines + [f"  {p}" for p in self.problems]))
-
-
-@dataclasses.dataclass(frozen=True)
-class KiteModel:
-    """The parameter values a campaign's kite is solved with.
-
-    Attributes:
-        law_form: how ``bending_scale`` acts on Breukels' 2011 bending law: ``"curvature"``
-            (:class:`jaxtube.CurvatureScaledLaw`: stiffness x scale, the wrinkling and
-            collapse moments kept) or ``"moment"`` (:class:`jaxtube.ScaledLaw`: the whole
-            curve x scale, as the peers scale it).
-        bending_scale: the factor (1: the 2011 law as published).
-        rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
-    """
-
-    law_form: str = "curvature"
-    bending_scale: float = 1.0
-    rest_length_factors: dict = dataclasses.field(default_factory=dict)
-
-    def to_json(self) -> dict:
-        return {"law_form": self.law_form, "bending_scale": self.bending_scale,
-                "rest_length_factors": dict(self.rest_length_factors)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +107,8 @@ class Campaign:
         model: the model's parameter values (:class:`KiteModel`).
         hang: the hang schedule.
         line_sets: ``{name: ((node_a, node_b), ...)}``: the lines of each set.
-        tubes: ``{marker group: model tube name}``.
+        tubes: ``{marker group: ((node_a, node_b, radius [m]), ...)}``: the beams of the
+            tube each marker group lies on (:func:`beam_path`).
         canopy_group: the marker group on the canopy.
         length_pairs: ``{length name: (node_a, node_b)}``.
         cases: the cases, in file order.
@@ -165,102 +132,6 @@ class Campaign:
                 return case
         raise KeyError(f"{self.path}: no case named {name!r} (cases: "
                        f"{', '.join(c.name for c in self.cases)})")
-
-
-class _Checker:
-    """Collects problems while reading; ``need`` reads one key with a type check."""
-
-    def __init__(self, source: Path):
-        self.report = jt.ProblemReport(str(source))
-
-    def add(self, key, message):
-        self.report.add(key, message)
-
-    def number(self, table, key, where, default=None, minimum=None, positive=False):
-        value = table.get(key, default)
-        if value is None:
-            if default is None and key not in table:
-                self.add(f"{where}.{key}", "missing (expected a number)")
-            return None
-        if isinstance(value, bool) or not isinstance(value, int | float) or \
-                not math.isfinite(value):
-            self.add(f"{where}.{key}", f"expected a finite number, found {value!r}")
-            return None
-        if positive and not value > 0:
-            self.add(f"{where}.{key}", f"expected a positive number, found {value!r}")
-            return None
-        if minimum is not None and value < minimum:
-            self.add(f"{where}.{key}", f"expected a number >= {minimum}, found {value!r}")
-            return None
-        return float(value)
-
-    def node(self, value, where, node_count, movable=None):
-        if isinstance(value, bool) or not isinstance(value, int) or \
-                not 0 <= value < node_count:
-            self.add(where, f"expected a node of the model (an integer 0..{node_count - 1}), "
-                            f"found {value!r}")
-            return None
-        if movable is not None and value not in movable:
-            self.add(where, f"node {value} is held or fixed in the model (no element moves "
-                            "it, or it is a suspension node): a load there does nothing")
-            return None
-        return int(value)
-
-    def unknown_keys(self, table, known, where):
-        for key in table:
-            if key not in known:
-                self.add(f"{where}.{key}" if where else key,
-                         f"unknown key (expected one of: {', '.join(known)})")
-
-
-def read_model_values(table, where, checker, line_sets) -> KiteModel:
-    """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
-    known = ("law_form", "bending_scale", "rest_length_factors")
-    for key in table:
-        if key not in known:
-            checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
-                                          f"{', '.join(known)})")
-    form = table.get("law_form", "curvature")
-    if form not in LAW_FORMS:
-        checker.add(f"{where}.law_form", f"expected one of {', '.join(LAW_FORMS)}, "
-                                         f"found {form!r}")
-    scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
-    factors = {}
-    given = table.get("rest_length_factors", {})
-    if not isinstance(given, dict):
-        checker.add(f"{where}.rest_length_factors", "expected a table {line set = factor}")
-        given = {}
-    for name in given:
-        if name not in line_sets:
-            checker.add(f"{where}.rest_length_factors.{name}",
-                        f"unknown line set (the campaign's line sets: "
-                        f"{', '.join(line_sets) or 'none'})")
-            continue
-        factors[name] = checker.number(given, name, f"{where}.rest_length_factors",
-                                       positive=True)
-    return KiteModel(form, scale or 1.0, factors)
-
-
-def read_model_file(path, campaign: Campaign) -> KiteModel:
-    """A model.json written by ``jaxtube shape`` (or by hand): the ``[model]`` keys as JSON,
-    checked against ``campaign``'s line sets."""
-    import json
-
-    path = Path(path)
-    checker = _Checker(path)
-    try:
-        table = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
-    except json.JSONDecodeError as error:
-        raise CampaignError([jt.Problem(str(path), f"not JSON: {error}")]) from None
-    if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
-        raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
-                                                   "'model'", "model")])
-    model = read_model_values(table["model"], "model", checker, campaign.line_sets)
-    if len(checker.report):
-        raise CampaignError(checker.report.problems)
-    return model
 
 
 def _line_set(value, where, checker, model) -> tuple:
@@ -359,7 +230,7 @@ def read_campaign(path) -> Campaign:
     listing every problem (file, key, reason)."""
     path = Path(path)
     base = path.parent
-    checker = _Checker(path)
+    checker = ProblemCollector(path)
     try:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError:

@@ -21,7 +21,8 @@ import numpy as np
 import jaxtube as jt
 
 from .._shape.surfaces import TubeSurfaces
-from .file import Campaign, CampaignCase, KiteModel
+from .file import Campaign, CampaignCase
+from .model import KiteModel
 
 
 def line_set_rows(campaign: Campaign, name: str) -> np.ndarray:
@@ -43,7 +44,9 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     params = eqx.tree_at(lambda p: p.bending_laws, params, laws)
     rest = params.elements.line_rest_length
     for name, factor in model.rest_length_factors.items():
-        rest = rest.at[line_set_rows(campaign, name)].multiply(factor)
+        in_set = np.zeros(rest.shape, bool)
+        in_set[line_set_rows(campaign, name)] = True
+        rest = rest * jnp.where(in_set, factor, 1.0)  # differentiable in a traced factor
     return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
 
 

@@ -33,8 +33,9 @@ import jaxtube as jt
 from .._shape.figure import shape_figure
 from .._shape.markers import load_markers
 from .._shape.score import MARKER_CSV_COLUMNS, ShapeScore, score_shape
-from .file import Campaign, KiteModel
+from .file import Campaign
 from .kite import campaign_lengths, campaign_tube_surfaces
+from .model import KiteModel
 from .solve import CaseSolution, CaseSolver
 
 

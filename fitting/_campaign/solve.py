@@ -28,8 +28,9 @@ import numpy as np
 
 import jaxtube as jt
 
-from .file import Campaign, CampaignCase, KiteModel
+from .file import Campaign, CampaignCase
 from .kite import import_campaign_case, model_value, with_model_values, with_values
+from .model import KiteModel
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

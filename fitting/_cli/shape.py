@@ -22,7 +22,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .._campaign.file import CampaignError, read_campaign, read_model_file
+from .._campaign.file import read_campaign
+from .._campaign.model import CampaignError, read_model_file
 from .._campaign.report import compare_cases, comparison_writers, prediction_writers
 from .._campaign.solve import CaseSolver
 from .._shape.files import ShapeFileError
