@@ -44,6 +44,7 @@ from ._calibrate.problem import (
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
+from ._campaign.calibrate import CampaignCalibration, calibrate_campaign
 from ._campaign.file import (
     Campaign,
     CampaignCase,
@@ -124,6 +125,7 @@ __all__ = [
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
     "score_shape", "spanwise_family",
+    "CampaignCalibration", "calibrate_campaign",
     "Campaign", "CampaignCase", "CampaignError", "CaseLoad", "CaseSolution", "CaseSolver",
     "HangSchedule", "KiteModel", "campaign_lengths", "campaign_tube_surfaces",
     "import_campaign_case", "line_set_rows", "model_value", "read_campaign",

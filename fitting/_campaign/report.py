@@ -183,3 +183,18 @@ def prediction_writers(solved: CaseSolution, model: KiteModel, campaign: Campaig
     if solved.converged:
         writers["positions.csv"] = lambda path: jt.write_positions_csv(path, solved.positions)
     return writers
+
+
+def rms_before_after_figure(before: dict, after: dict, path) -> None:
+    """Bars of each case's RMS [mm] before and after a calibration."""
+    names = list(before)
+    figure = Figure(figsize=(1.4 * len(names) + 3, 4))
+    axes = figure.add_subplot()
+    for k, (label, values) in enumerate((("before", before), ("after", after))):
+        axes.bar(np.arange(len(names)) + (k - 0.5) * 0.4, [values[n] for n in names], 0.4,
+                 label=label)
+    axes.set_xticks(np.arange(len(names)), names)
+    axes.set_ylabel("smooth RMS marker distance [mm]")
+    axes.legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)

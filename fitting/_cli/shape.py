@@ -11,6 +11,13 @@ every case (or those named) solved: ``DIR/<case>/positions.csv`` (``node,x_m,y_m
 node of the model file; none when the solve did not converge) and ``DIR/<case>/summary.json``
 (``converged``, ``seconds`` warm).
 
+``jaxtube shape calibrate CAMPAIGN.toml --values NAME [NAME ...] [--model model.json]
+[--cases A B ...] --out DIR``: the values (``bending_scale``, ``rest_length_factors.SET``)
+fitted by gradient to the calibration cases (:mod:`fitting._campaign.calibrate`):
+``model.json`` (the model, each value with its standard error, what the cases do not
+determine), ``cases.csv`` and ``rms_before_after.png`` (each case's smooth RMS before and
+after).
+
 The campaign format: ``docs/spec-format.md`` ("Campaign files"); the workflow:
 ``docs/shapes.md``. Exit codes: 0 success; 1 written, but a solve did not converge (or, for
 ``compare``, a registration did not meet its tolerance); 2 bad input (every problem named
@@ -19,12 +26,19 @@ with file, key and reason; nothing written).
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
+from .._campaign.calibrate import calibrate_campaign
 from .._campaign.file import read_campaign
 from .._campaign.model import CampaignError, read_model_file
-from .._campaign.report import compare_cases, comparison_writers, prediction_writers
+from .._campaign.report import (
+    compare_cases,
+    comparison_writers,
+    prediction_writers,
+    rms_before_after_figure,
+)
 from .._campaign.solve import CaseSolver
 from .._shape.files import ShapeFileError
 from .._shape.markers import load_markers
@@ -40,7 +54,9 @@ def add_shape(subparsers) -> None:
     commands = parser.add_subparsers(title="shape commands", metavar="COMMAND")
     for name, help_text, run in (
             ("compare", "solve the cases with markers and score them", run_compare),
-            ("predict", "solve every case and write its node positions", run_predict)):
+            ("predict", "solve every case and write its node positions", run_predict),
+            ("calibrate", "fit model values to the calibration cases by gradient",
+             run_calibrate)):
         command = commands.add_parser(name, help=help_text, description=help_text)
         command.add_argument("campaign", type=Path, help="campaign file (TOML)")
         command.add_argument("--model", type=Path, default=None,
@@ -48,7 +64,12 @@ def add_shape(subparsers) -> None:
                                   "campaign's [model])")
         command.add_argument("--cases", nargs="+", default=None,
                              help="case names (default: every case"
-                                  + (" with markers)" if name == "compare" else ")"))
+                                  + {"compare": " with markers)", "predict": ")",
+                                     "calibrate": " whose role is calibrate)"}[name])
+        if name == "calibrate":
+            command.add_argument("--values", nargs="+", required=True,
+                                 help="the values to fit: bending_scale, "
+                                      "rest_length_factors.SET (a line set of the campaign)")
         if name == "compare":
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
@@ -57,15 +78,16 @@ def add_shape(subparsers) -> None:
     parser.set_defaults(run=lambda args: (parser.print_help(sys.stderr), 2)[1])
 
 
-def _read(args, need_markers: bool):
+def _read(args, need_markers: bool, calibration: bool = False):
     """``(campaign, model, case names)`` or ``None`` after saying why (exit code 2)."""
     if bad_output_directory(args.out):
         return None
     try:
         campaign = read_campaign(args.campaign)
         model = campaign.model if args.model is None else read_model_file(args.model, campaign)
-        names = [c.name for c in campaign.cases if c.markers or not need_markers] \
-            if args.cases is None else list(args.cases)
+        default = [c.name for c in campaign.cases
+                   if (c.role == "calibrate" if calibration else c.markers or not need_markers)]
+        names = default if args.cases is None else list(args.cases)
         for name in names:
             case = campaign.case(name)
             if need_markers:
@@ -138,3 +160,38 @@ def run_predict(args) -> int:
         print(f"warning: not converged: {', '.join(failed)} (no positions.csv written)",
               file=sys.stderr)
     return 1 if failed else 0
+
+
+def run_calibrate(args) -> int:
+    """Run ``shape calibrate``; returns the exit code."""
+    read = _read(args, need_markers=True, calibration=True)
+    if read is None:
+        return 2
+    campaign, model, names = read
+    for value in args.values:
+        if value != "bending_scale" and not (value.startswith("rest_length_factors.") and
+                                             value.partition(".")[2] in campaign.line_sets):
+            print(f"error: --values: unknown value {value!r} (expected bending_scale or "
+                  f"rest_length_factors.SET with SET one of: "
+                  f"{', '.join(campaign.line_sets) or 'no line sets'})", file=sys.stderr)
+            return 2
+    found = calibrate_campaign(campaign, model, args.values, names, CaseSolver(campaign),
+                               log=lambda text: print(text, file=sys.stderr, flush=True))
+    rows = "case,rms_mm_before,rms_mm_after\n" + "".join(
+        f"{c},{found.rms_mm_before[c]!r},{found.rms_mm_after[c]!r}\n" for c in names)
+    write_directory(args.out, {
+        "model.json": lambda path: path.write_text(json.dumps(found.to_json(), indent=2)
+                                                   + "\n"),
+        "cases.csv": lambda path: path.write_text(rows),
+        "rms_before_after.png": lambda path: rms_before_after_figure(
+            found.rms_mm_before, found.rms_mm_after, path),
+    })
+    for name, value, error in zip(found.names, found.values, found.standard_errors):
+        print(f"{name} = {value:.4g} +- {error:.2g}")
+    for statement in found.statements:
+        print(f"note: {statement}")
+    for case in names:
+        print(f"{case}: smooth RMS {found.rms_mm_before[case]:.1f} -> "
+              f"{found.rms_mm_after[case]:.1f} mm")
+    print(f"wrote {args.out / 'model.json'} (converged {found.converged}: {found.message})")
+    return 0 if found.converged else 1
