@@ -9,6 +9,9 @@ One compiled program serves every test here: the staged hang of the small kite u
 tangents; finite differences and the searches reuse it at other values.
 """
 
+import argparse
+import json
+
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
@@ -16,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 import fitting
 from fitting import continuous_radius, smooth_shape_score
+from fitting._cli.shape import add_shape
 
 from .kite_fem_mini import write_mini_kite
 
@@ -157,3 +161,26 @@ def test_calibration_recovers_the_planted_values_with_standard_errors(kite):
     assert found.values == pytest.approx(PLANTED, rel=0.1)
     assert found.rms_mm_after["hung"] < 0.5 * found.rms_mm_before["hung"]
     assert found.model.rest_length_factors["bridle"] == pytest.approx(found.values[1])
+
+
+def test_calibrate_command_writes_the_model_and_refuses_unknown_values(kite, tmp_path):
+    """``jaxtube shape calibrate`` writes model.json (values, standard errors), the cases
+    before and after and the figure; an unknown value is refused and nothing is written."""
+    campaign, _, _ = kite
+    parser = argparse.ArgumentParser()
+    add_shape(parser.add_subparsers())
+    arguments = ["shape", "calibrate", str(campaign.path), "--values"]
+    args = parser.parse_args(arguments + ["bending_scale", "--out", str(tmp_path / "bad")])
+    args.values = ["rest_length_factors.canopy"]
+    assert args.run(args) == 2 and not (tmp_path / "bad").exists()
+    args = parser.parse_args(arguments + list(NAMES) + ["--out", str(tmp_path / "out")])
+    assert args.run(args) == 0
+    written = json.loads((tmp_path / "out" / "model.json").read_text())
+    fitted = written["fitted"]
+    assert fitted["bending_scale"]["value"] == pytest.approx(PLANTED[0], rel=0.1)
+    assert fitted["rest_length_factors.bridle"]["standard_error"] > 0
+    assert written["model"]["rest_length_factors"]["bridle"] == pytest.approx(
+        fitted["rest_length_factors.bridle"]["value"])
+    assert fitting.read_model_file(tmp_path / "out" / "model.json", campaign).bending_scale \
+        == pytest.approx(fitted["bending_scale"]["value"])
+    assert (tmp_path / "out" / "rms_before_after.png").read_bytes()[:4] == b"\x89PNG"
