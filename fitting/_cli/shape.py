@@ -26,6 +26,7 @@ with file, key and reason; nothing written).
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from pathlib import Path
@@ -74,8 +75,15 @@ def add_shape(subparsers) -> None:
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
         command.add_argument("--out", type=Path, required=True, help="output directory")
-        command.set_defaults(run=run)
+        command.set_defaults(run=functools.partial(_read_then, run, name))
     parser.set_defaults(run=lambda args: (parser.print_help(sys.stderr), 2)[1])
+
+
+def _read_then(run, command: str, args) -> int:
+    """Read the campaign (and model) of ``args``, then ``run(args, campaign, model, case
+    names)``; exit code 2 after saying why when they do not read (nothing written)."""
+    read = _read(args, need_markers=command != "predict", calibration=command == "calibrate")
+    return 2 if read is None else run(args, *read)
 
 
 def _read(args, need_markers: bool, calibration: bool = False):
@@ -108,12 +116,8 @@ def _read(args, need_markers: bool, calibration: bool = False):
     return campaign, model, names
 
 
-def run_compare(args) -> int:
+def run_compare(args, campaign, model, names) -> int:
     """Run ``shape compare``; returns the exit code."""
-    read = _read(args, need_markers=True)
-    if read is None:
-        return 2
-    campaign, model, names = read
     solver = CaseSolver(campaign)
     records = compare_cases(campaign, model, names, solver,
                             log=lambda text: print(text, file=sys.stderr, flush=True))
@@ -139,12 +143,8 @@ def run_compare(args) -> int:
     return 1 if failed else 0
 
 
-def run_predict(args) -> int:
+def run_predict(args, campaign, model, names) -> int:
     """Run ``shape predict``; returns the exit code."""
-    read = _read(args, need_markers=False)
-    if read is None:
-        return 2
-    campaign, model, names = read
     solver = CaseSolver(campaign)
     failed = []
     for name in names:
@@ -162,12 +162,8 @@ def run_predict(args) -> int:
     return 1 if failed else 0
 
 
-def run_calibrate(args) -> int:
+def run_calibrate(args, campaign, model, names) -> int:
     """Run ``shape calibrate``; returns the exit code."""
-    read = _read(args, need_markers=True, calibration=True)
-    if read is None:
-        return 2
-    campaign, model, names = read
     for value in args.values:
         if value != "bending_scale" and not (value.startswith("rest_length_factors.") and
                                              value.partition(".")[2] in campaign.line_sets):
