@@ -87,6 +87,12 @@ def test_line_set_factor_scales_its_lines_alone():
     others = np.setdiff1d(np.arange(before.size), rows)
     np.testing.assert_array_equal(after[others], before[others])
     np.testing.assert_allclose(after[rows], 0.9 * before[rows], rtol=1e-15)
+    stiffer = fitting.with_model_values(campaign, plain.params, fitting.KiteModel(
+        stiffness_factors={"trailing_edge": 2.0})).elements
+    stiffness = np.asarray(plain.params.elements.line_stiffness)
+    np.testing.assert_array_equal(np.asarray(stiffer.line_stiffness)[others], stiffness[others])
+    np.testing.assert_allclose(np.asarray(stiffer.line_stiffness)[rows], 2 * stiffness[rows])
+    np.testing.assert_array_equal(np.asarray(stiffer.line_rest_length), before)
     # The bending factor reaches every tube's law, in the form asked for.
     laws = fitting.import_campaign_case(campaign, case, fitting.KiteModel(
         law_form="moment", bending_scale=0.3)).params.bending_laws

@@ -4,7 +4,8 @@ errors and a statement for every value the cases do not determine.
 **Objective.** The mean over the calibration cases of the squared smooth marker RMS
 (:func:`fitting.smooth_shape_score`: the peers' metric with the radius continuous along each
 tube, re-registered at every evaluation), in mm², as a function of the logarithms of the
-fitted values (``"bending_scale"``, ``"rest_length_factors.SET"``). Its gradient is each
+fitted values (``"bending_scale"``, ``"rest_length_factors.SET"``,
+``"stiffness_factors.SET"``). Its gradient is each
 case's position gradient at the optimal registration times the equilibrium's tangents
 (:meth:`fitting.CaseSolver.tangents`: implicit function theorem). Search: damped
 Gauss-Newton (Levenberg) on the markers' distances, the registrations' six numbers per case
@@ -36,8 +37,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._shape.markers import load_markers
-from .._shape.registration import marker_distances
 from .._shape.smooth import continuous_radius, smooth_shape_score
+from .._shape.surfaces import tube_surface_distance
 from .file import Campaign
 from .kite import campaign_tube_surfaces, model_value, with_values
 from .model import KiteModel
@@ -46,7 +47,8 @@ from .solve import CaseSolver
 UNDETERMINED_RELATIVE_ERROR = 0.5
 UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
-DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "rest_length_factors": (0.8, 1.2)}
+DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "rest_length_factors": (0.8, 1.2),
+                  "stiffness_factors": (0.1, 10.0)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,24 +187,26 @@ def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
         surfaces = continuous_radius(campaign_tube_surfaces(campaign, positions))
         registration = score.registration.registration
         groups = registration.surface_groups(markers[case], surfaces)
-        tube = jnp.asarray(groups >= 0)
+        tube = np.flatnonzero(groups >= 0)
+        points = markers[case].position[tube]
+        point_groups = jnp.asarray(groups[tube])
 
-        def distances(x, rotation, translation, registration=registration, case=case,
-                      surfaces=surfaces, tube=tube):
+        def distances(x, rotation, translation, registration=registration, points=points,
+                      point_groups=point_groups, surfaces=surfaces):
             moved = eqx.tree_at(lambda r: (r.rotation_vector, r.translation), registration,
                                 (rotation, translation))
-            found = marker_distances(surfaces.with_positions(x), markers[case], moved)
-            return jnp.where(tube, found.distance, 0.0)
+            return tube_surface_distance(surfaces.with_positions(x), moved.apply(points),
+                                         point_groups)[0]
 
         arguments = (jnp.asarray(positions), registration.rotation_vector,
                      registration.translation)
-        by_position, by_rotation, by_translation = jax.jacfwd(distances, argnums=(0, 1, 2))(
+        # Reverse mode: one pass per tube marker (tens) rather than per coordinate (hundreds).
+        by_position, by_rotation, by_translation = jax.jacrev(distances, argnums=(0, 1, 2))(
             *arguments)
-        keep = np.asarray(groups >= 0)
-        residuals.append(np.asarray(distances(*arguments))[keep])
-        by_value = np.einsum("mnd,ndk->mk", np.asarray(by_position), tangents)[keep]
+        residuals.append(np.asarray(distances(*arguments)))
+        by_value = np.einsum("mnd,ndk->mk", np.asarray(by_position), tangents)
         blocks.append((by_value, np.concatenate([np.asarray(by_rotation),
-                                                 np.asarray(by_translation)], 1)[keep]))
+                                                 np.asarray(by_translation)], 1)))
     count = sum(len(r) for r in residuals)
     jacobian = np.zeros((count, k + 6 * len(blocks)))
     row = 0

@@ -35,45 +35,55 @@ def line_set_rows(campaign: Campaign, name: str) -> np.ndarray:
 
 def with_model_values(campaign: Campaign, params: jt.StructureParameters,
                       model: KiteModel) -> jt.StructureParameters:
-    """``params`` with ``model``'s bending factor on every tube's law and the rest lengths of
-    each line set times its factor (the laws must already be of ``model.law_form``:
+    """``params`` with ``model``'s bending factor on every tube's law and the rest lengths and
+    stiffnesses of each line set times their factors (the laws must already be of
+    ``model.law_form``:
     :func:`import_campaign_case`)."""
     scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
     laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(model.bending_scale))
                  if isinstance(law, scaled) else law for law in params.bending_laws)
     params = eqx.tree_at(lambda p: p.bending_laws, params, laws)
-    rest = params.elements.line_rest_length
-    for name, factor in model.rest_length_factors.items():
-        in_set = np.zeros(rest.shape, bool)
-        in_set[line_set_rows(campaign, name)] = True
-        rest = rest * jnp.where(in_set, factor, 1.0)  # differentiable in a traced factor
-    return eqx.tree_at(lambda p: p.elements.line_rest_length, params, rest)
+    elements = params.elements
+    for kind, values in (("line_rest_length", model.rest_length_factors),
+                         ("line_stiffness", model.stiffness_factors)):
+        array = getattr(elements, kind)
+        for name, factor in values.items():
+            in_set = np.zeros(array.shape, bool)
+            in_set[line_set_rows(campaign, name)] = True
+            array = array * jnp.where(in_set, factor, 1.0)  # differentiable in the factor
+        elements = eqx.tree_at(lambda e, kind=kind: getattr(e, kind), elements, array)
+    return eqx.tree_at(lambda p: p.elements, params, elements)
+
+
+VALUE_KINDS = ("rest_length_factors", "stiffness_factors")
 
 
 def model_value(model: KiteModel, name: str) -> float:
-    """One of ``model``'s values by name: ``"bending_scale"`` or
-    ``"rest_length_factors.SET"`` (a line set without a factor: 1)."""
+    """One of ``model``'s values by name: ``"bending_scale"``,
+    ``"rest_length_factors.SET"`` or ``"stiffness_factors.SET"`` (a line set without a
+    factor: 1)."""
     if name == "bending_scale":
         return model.bending_scale
-    prefix, _, line_set = name.partition(".")
-    if prefix != "rest_length_factors" or not line_set:
-        raise ValueError(f"unknown model value {name!r} (expected 'bending_scale' or "
-                         "'rest_length_factors.SET')")
-    return model.rest_length_factors.get(line_set, 1.0)
+    kind, _, line_set = name.partition(".")
+    if kind not in VALUE_KINDS or not line_set:
+        raise ValueError(f"unknown model value {name!r} (expected 'bending_scale', "
+                         "'rest_length_factors.SET' or 'stiffness_factors.SET')")
+    return getattr(model, kind).get(line_set, 1.0)
 
 
 def with_values(model: KiteModel, names, values) -> KiteModel:
     """``model`` with its values ``names`` (:func:`model_value`) set to ``values`` (numbers
     or traced scalars)."""
-    factors = dict(model.rest_length_factors)
+    changed = {kind: dict(getattr(model, kind)) for kind in VALUE_KINDS}
     scale = model.bending_scale
     for k, name in enumerate(names):
         model_value(model, name)  # validates the name
         if name == "bending_scale":
             scale = values[k]
         else:
-            factors[name.partition(".")[2]] = values[k]
-    return dataclasses.replace(model, bending_scale=scale, rest_length_factors=factors)
+            kind, _, line_set = name.partition(".")
+            changed[kind][line_set] = values[k]
+    return dataclasses.replace(model, bending_scale=scale, **changed)
 
 
 def import_campaign_case(campaign: Campaign, case: CampaignCase,

@@ -37,15 +37,18 @@ class KiteModel:
             curve x scale, as the peers scale it).
         bending_scale: the factor (1: the 2011 law as published).
         rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
+        stiffness_factors: ``{line set: factor}`` on the stiffness [N/m] of a line set.
     """
 
     law_form: str = "curvature"
     bending_scale: float = 1.0
     rest_length_factors: dict = dataclasses.field(default_factory=dict)
+    stiffness_factors: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"law_form": self.law_form, "bending_scale": self.bending_scale,
-                "rest_length_factors": dict(self.rest_length_factors)}
+                "rest_length_factors": dict(self.rest_length_factors),
+                "stiffness_factors": dict(self.stiffness_factors)}
 
 
 class ProblemCollector:
@@ -98,7 +101,7 @@ class ProblemCollector:
 
 def read_model_values(table, where, checker, line_sets) -> KiteModel:
     """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
-    known = ("law_form", "bending_scale", "rest_length_factors")
+    known = ("law_form", "bending_scale", "rest_length_factors", "stiffness_factors")
     for key in table:
         if key not in known:
             checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
@@ -109,19 +112,21 @@ def read_model_values(table, where, checker, line_sets) -> KiteModel:
                                          f"found {form!r}")
     scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
     factors = {}
-    given = table.get("rest_length_factors", {})
-    if not isinstance(given, dict):
-        checker.add(f"{where}.rest_length_factors", "expected a table {line set = factor}")
-        given = {}
-    for name in given:
-        if name not in line_sets:
-            checker.add(f"{where}.rest_length_factors.{name}",
-                        f"unknown line set (the campaign's line sets: "
-                        f"{', '.join(line_sets) or 'none'})")
+    for kind in ("rest_length_factors", "stiffness_factors"):
+        factors[kind] = {}
+        given = table.get(kind, {})
+        if not isinstance(given, dict):
+            checker.add(f"{where}.{kind}", "expected a table {line set = factor}")
             continue
-        factors[name] = checker.number(given, name, f"{where}.rest_length_factors",
-                                       positive=True)
-    return KiteModel(form, scale or 1.0, factors)
+        for name in given:
+            if name not in line_sets:
+                checker.add(f"{where}.{kind}.{name}",
+                            f"unknown line set (the campaign's line sets: "
+                            f"{', '.join(line_sets) or 'none'})")
+                continue
+            factors[kind][name] = checker.number(given, name, f"{where}.{kind}", positive=True)
+    return KiteModel(form, scale or 1.0, factors["rest_length_factors"],
+                     factors["stiffness_factors"])
 
 
 def read_model_file(path, campaign) -> KiteModel:

@@ -124,7 +124,8 @@ class CaseSolver:
 
     def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
         """The case's equilibrium and its tangents with respect to the logarithms of
-        ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``),
+        ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``,
+        ``"stiffness_factors.SET"``),
         by forward mode through the solve (implicit function theorem; a drive only supplies
         the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
         [m per unit log value], converged)`` in the model file's numbering (held nodes do

@@ -33,6 +33,7 @@ from pathlib import Path
 
 from .._campaign.calibrate import calibrate_campaign
 from .._campaign.file import read_campaign
+from .._campaign.kite import VALUE_KINDS
 from .._campaign.model import CampaignError, read_model_file
 from .._campaign.report import (
     compare_cases,
@@ -70,7 +71,8 @@ def add_shape(subparsers) -> None:
         if name == "calibrate":
             command.add_argument("--values", nargs="+", required=True,
                                  help="the values to fit: bending_scale, "
-                                      "rest_length_factors.SET (a line set of the campaign)")
+                                      "rest_length_factors.SET, stiffness_factors.SET (SET: "
+                                      "a line set of the campaign)")
         if name == "compare":
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
@@ -165,10 +167,11 @@ def run_predict(args, campaign, model, names) -> int:
 def run_calibrate(args, campaign, model, names) -> int:
     """Run ``shape calibrate``; returns the exit code."""
     for value in args.values:
-        if value != "bending_scale" and not (value.startswith("rest_length_factors.") and
-                                             value.partition(".")[2] in campaign.line_sets):
-            print(f"error: --values: unknown value {value!r} (expected bending_scale or "
-                  f"rest_length_factors.SET with SET one of: "
+        kind, _, line_set = value.partition(".")
+        if value != "bending_scale" and not (kind in VALUE_KINDS and
+                                             line_set in campaign.line_sets):
+            print(f"error: --values: unknown value {value!r} (expected bending_scale, "
+                  f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
                   f"{', '.join(campaign.line_sets) or 'no line sets'})", file=sys.stderr)
             return 2
     found = calibrate_campaign(campaign, model, args.values, names, CaseSolver(campaign),
