@@ -10,8 +10,9 @@ case's position gradient at the optimal registration times the equilibrium's tan
 (:meth:`fitting.CaseSolver.tangents`: implicit function theorem). Search: damped
 Gauss-Newton (Levenberg) on the markers' distances, the registrations' six numbers per case
 in the step and solved again at every trial (variable projection), each step clipped to the
-values' bounds; it stops when the objective falls by less than 1e-6 relatively or the values
-move by less than 1e-5 in log, or when no damping lowers it. Every evaluation solves each
+values' bounds; it stops when a step lowers the root of the objective by less than
+``RMS_TOLERANCE_MM`` or moves the values by less than 1e-5 in log, or when no damping
+lowers it. Every evaluation solves each
 case from the undeformed shape.
 
 **Standard errors** (Gauss-Newton at the optimum): the residuals are the tube markers'
@@ -44,6 +45,9 @@ from .kite import campaign_tube_surfaces, model_value, with_values
 from .model import KiteModel
 from .solve import CaseSolver
 
+#: The search stops when a step lowers the root of the mean square RMS by less than this
+#: [mm]: far below what photogrammetric markers resolve.
+RMS_TOLERANCE_MM = 0.01
 UNDETERMINED_RELATIVE_ERROR = 0.5
 UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
@@ -151,9 +155,11 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
             break
         moved = np.max(np.abs(trial[0] - theta))
         current = trial
-        if total - trial[1] <= 1e-6 * total or moved < 1e-5:
-            converged, message = True, (f"the mean square RMS fell by {total - trial[1]:.2g} "
-                                        f"mm^2 and the values moved by {moved:.2g} (log)")
+        fall = np.sqrt(total) - np.sqrt(trial[1])
+        if fall < RMS_TOLERANCE_MM or moved < 1e-5:
+            converged, message = True, (f"the RMS fell by {fall:.2g} mm (< "
+                                        f"{RMS_TOLERANCE_MM} mm) or the values moved by "
+                                        f"{moved:.2g} (log)")
             break
     theta, _, per_case, states = current
     values = np.exp(theta)
