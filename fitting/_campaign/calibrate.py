@@ -51,7 +51,8 @@ RMS_TOLERANCE_MM = 0.01
 UNDETERMINED_RELATIVE_ERROR = 0.5
 UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
-DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "rest_length_factors": (0.8, 1.2),
+DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "torsion_scale": (0.1, 10.0),
+                  "pressure_factor": (0.8, 1.25), "rest_length_factors": (0.8, 1.2),
                   "stiffness_factors": (0.1, 10.0)}
 
 
@@ -66,8 +67,11 @@ class CampaignCalibration:
         correlation: ``[k, k]`` correlation of the estimates (log values).
         statements: what the cases do not determine, in words (empty: every value is).
         rms_mm_before, rms_mm_after: ``{case: smooth RMS [mm]}`` at the start and the end.
-        converged: L-BFGS-B met its tolerance; message: its message.
+        converged: the search met its tolerance; message: its message.
         evaluations: objective evaluations.
+        residual_sum_squares_m2: the tube markers' smooth distances' sum of squares [m²]
+            over every case at the end; residual_count: how many; degrees_of_freedom: that
+            count less the values and six registration numbers per case.
     """
 
     model: KiteModel
@@ -81,6 +85,9 @@ class CampaignCalibration:
     converged: bool
     message: str
     evaluations: int
+    residual_sum_squares_m2: float
+    residual_count: int
+    degrees_of_freedom: int
 
     def to_json(self) -> dict:
         """The model file's content (``model``) with the estimates and what was said."""
@@ -163,7 +170,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
             break
     theta, _, per_case, states = current
     values = np.exp(theta)
-    log_errors, correlation = _log_standard_errors(campaign, markers, states, len(names))
+    log_errors, correlation, residuals = _log_standard_errors(campaign, markers, states,
+                                                              len(names))
     statements = []
     for k, name in enumerate(names):
         if not np.isfinite(log_errors[k]) or log_errors[k] > UNDETERMINED_RELATIVE_ERROR:
@@ -179,7 +187,7 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     return CampaignCalibration(with_values(model, names, values), names, values,
                                values * log_errors, correlation, tuple(statements),
                                evaluations[0][2], per_case, converged, message,
-                               len(evaluations))
+                               len(evaluations), *residuals)
 
 
 def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
@@ -226,14 +234,17 @@ def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
 
 
 def _log_standard_errors(campaign, markers, states, k):
-    """Standard errors of the log values and their correlation (Gauss-Newton over the
-    markers' smooth distances, each case's registration a nuisance parameter)."""
+    """Standard errors of the log values, their correlation (Gauss-Newton over the
+    markers' smooth distances, each case's registration a nuisance parameter) and
+    ``(sum of squares [m²], residual count, degrees of freedom)``."""
     jacobian, residual = _least_squares_system(campaign, markers, states, k)
     count, columns = jacobian.shape
-    variance = float(residual @ residual) / max(count - columns, 1)
+    squares = float(residual @ residual)
+    residuals = (squares, count, count - columns)
+    variance = squares / max(count - columns, 1)
     normal = jacobian.T @ jacobian
     if np.linalg.cond(normal) > 1e14:
-        return np.full(k, np.nan), np.full((k, k), np.nan)
+        return np.full(k, np.nan), np.full((k, k), np.nan), residuals
     covariance = variance * np.linalg.inv(normal)[:k, :k]
     errors = np.sqrt(np.diag(covariance))
-    return errors, covariance / np.outer(errors, errors)
+    return errors, covariance / np.outer(errors, errors), residuals

@@ -112,6 +112,9 @@ class Campaign:
         canopy_group: the marker group on the canopy.
         length_pairs: ``{length name: (node_a, node_b)}``.
         cases: the cases, in file order.
+        diagnose_baseline: the values the diagnosis' baseline fits (``[diagnose]
+            baseline``); diagnose_candidates: the candidate effects' names (``[diagnose]
+            candidates``; ``None``: every built-in effect).
     """
 
     path: Path
@@ -125,6 +128,8 @@ class Campaign:
     canopy_group: str
     length_pairs: dict
     cases: tuple
+    diagnose_baseline: tuple = ("bending_scale",)
+    diagnose_candidates: tuple | None = None
 
     def case(self, name: str) -> CampaignCase:
         for case in self.cases:
@@ -238,7 +243,7 @@ def read_campaign(path) -> Campaign:
     except tomllib.TOMLDecodeError as error:
         raise CampaignError([jt.Problem(str(path), f"not TOML: {error}")]) from None
     checker.unknown_keys(data, ("structure", "model", "hang", "line_sets", "tubes",
-                                "lengths", "cases"), "")
+                                "lengths", "cases", "diagnose"), "")
     structure = data.get("structure", {})
     checker.unknown_keys(structure, ("kite_fem", "suspension", "gravity_m_s2"), "structure")
     if "kite_fem" not in structure:
@@ -350,10 +355,22 @@ def read_campaign(path) -> Campaign:
                                   dict(case.get("published_rms_mm", {}))))
     if not cases:
         checker.add("cases", "missing (at least one [[cases]] table)")
+    diagnose = data.get("diagnose", {})
+    checker.unknown_keys(diagnose, ("baseline", "candidates"), "diagnose")
+    lists = {}
+    for key, default in (("baseline", ["bending_scale"]), ("candidates", None)):
+        value = diagnose.get(key, default)
+        if value is not None and not (isinstance(value, list) and value and
+                                      all(isinstance(v, str) for v in value)):
+            checker.add(f"diagnose.{key}", f"expected a non-empty list of names, found "
+                                           f"{value!r}")
+            value = None
+        lists[key] = None if value is None else tuple(value)
     if len(checker.report):
         raise CampaignError(checker.report.problems)
     return Campaign(path, model, suspension, gravity, model_values, hang, line_sets, tubes,
-                    canopy_group, pairs, tuple(cases))
+                    canopy_group, pairs, tuple(cases), lists["baseline"] or ("bending_scale",),
+                    lists["candidates"])
 
 
 def _default_route(loads) -> str:

@@ -40,9 +40,12 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     ``model.law_form``:
     :func:`import_campaign_case`)."""
     scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
-    laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(model.bending_scale))
-                 if isinstance(law, scaled) else law for law in params.bending_laws)
-    params = eqx.tree_at(lambda p: p.bending_laws, params, laws)
+    for field, factor in (("bending_laws", model.bending_scale),
+                          ("torsion_laws", model.torsion_scale)):
+        laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(factor))
+                     if isinstance(law, scaled) else law for law in getattr(params, field))
+        params = eqx.tree_at(lambda p, field=field: getattr(p, field), params, laws)
+    params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor)
     elements = params.elements
     for kind, values in (("line_rest_length", model.rest_length_factors),
                          ("line_stiffness", model.stiffness_factors)):
@@ -56,34 +59,46 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
 
 
 VALUE_KINDS = ("rest_length_factors", "stiffness_factors")
+#: The model's values that act on the whole kite (the others are per line set).
+KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor")
 
 
 def model_value(model: KiteModel, name: str) -> float:
-    """One of ``model``'s values by name: ``"bending_scale"``,
+    """One of ``model``'s values by name: one of :data:`KITE_VALUES`,
     ``"rest_length_factors.SET"`` or ``"stiffness_factors.SET"`` (a line set without a
     factor: 1)."""
-    if name == "bending_scale":
-        return model.bending_scale
+    if name in KITE_VALUES:
+        return getattr(model, name)
     kind, _, line_set = name.partition(".")
     if kind not in VALUE_KINDS or not line_set:
-        raise ValueError(f"unknown model value {name!r} (expected 'bending_scale', "
-                         "'rest_length_factors.SET' or 'stiffness_factors.SET')")
+        raise ValueError(f"unknown model value {name!r} (expected one of "
+                         f"{', '.join(KITE_VALUES)}, 'rest_length_factors.SET' or "
+                         "'stiffness_factors.SET')")
     return getattr(model, kind).get(line_set, 1.0)
+
+
+def unknown_value_words(campaign: Campaign, name: str) -> str | None:
+    """Why ``name`` is not one of ``campaign``'s model values (``None``: it is)."""
+    kind, _, line_set = name.partition(".")
+    if name in KITE_VALUES or (kind in VALUE_KINDS and line_set in campaign.line_sets):
+        return None
+    return (f"unknown value {name!r} (expected {', '.join(KITE_VALUES)}, "
+            f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
+            f"{', '.join(campaign.line_sets) or 'no line sets'})")
 
 
 def with_values(model: KiteModel, names, values) -> KiteModel:
     """``model`` with its values ``names`` (:func:`model_value`) set to ``values`` (numbers
     or traced scalars)."""
     changed = {kind: dict(getattr(model, kind)) for kind in VALUE_KINDS}
-    scale = model.bending_scale
     for k, name in enumerate(names):
         model_value(model, name)  # validates the name
-        if name == "bending_scale":
-            scale = values[k]
+        if name in KITE_VALUES:
+            changed[name] = values[k]
         else:
             kind, _, line_set = name.partition(".")
             changed[kind][line_set] = values[k]
-    return dataclasses.replace(model, bending_scale=scale, **changed)
+    return dataclasses.replace(model, **changed)
 
 
 def import_campaign_case(campaign: Campaign, case: CampaignCase,
@@ -98,7 +113,8 @@ def import_campaign_case(campaign: Campaign, case: CampaignCase,
     imported = jt.import_kite_fem(campaign.kite_fem, pressure_bar=case.pressure_bar,
                                   bending_law=law, suspension=suspension,
                                   gravity=campaign.gravity, centre_node=suspension[0],
-                                  tip_nodes=(suspension[0], suspension[0]))
+                                  tip_nodes=(suspension[0], suspension[0]),
+                                  torsion_law=jt.ScaledLaw(jt.EmpiricalTorsionLaw2011(), 1.0))
     params = imported.params
     forces: dict[int, np.ndarray] = {}
     for load in case.loads:

@@ -38,17 +38,27 @@ class KiteModel:
         bending_scale: the factor (1: the 2011 law as published).
         rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
         stiffness_factors: ``{line set: factor}`` on the stiffness [N/m] of a line set.
+        torsion_scale: the factor on every tube's torsion law (Breukels' 2011 torsion law,
+            :class:`jaxtube.ScaledLaw`; 1: as published).
+        pressure_factor: the factor on every case's tube overpressure (1: the pressure the
+            case states; a gauge that reads 10 % low is 1.1).
     """
 
     law_form: str = "curvature"
     bending_scale: float = 1.0
     rest_length_factors: dict = dataclasses.field(default_factory=dict)
     stiffness_factors: dict = dataclasses.field(default_factory=dict)
+    torsion_scale: float = 1.0
+    pressure_factor: float = 1.0
 
     def to_json(self) -> dict:
-        return {"law_form": self.law_form, "bending_scale": self.bending_scale,
-                "rest_length_factors": dict(self.rest_length_factors),
-                "stiffness_factors": dict(self.stiffness_factors)}
+        return {"law_form": self.law_form, "bending_scale": float(self.bending_scale),
+                "torsion_scale": float(self.torsion_scale),
+                "pressure_factor": float(self.pressure_factor),
+                "rest_length_factors": {k: float(v) for k, v in
+                                        self.rest_length_factors.items()},
+                "stiffness_factors": {k: float(v) for k, v in
+                                      self.stiffness_factors.items()}}
 
 
 class ProblemCollector:
@@ -101,7 +111,8 @@ class ProblemCollector:
 
 def read_model_values(table, where, checker, line_sets) -> KiteModel:
     """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
-    known = ("law_form", "bending_scale", "rest_length_factors", "stiffness_factors")
+    known = ("law_form", "bending_scale", "torsion_scale", "pressure_factor",
+             "rest_length_factors", "stiffness_factors")
     for key in table:
         if key not in known:
             checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
@@ -111,6 +122,8 @@ def read_model_values(table, where, checker, line_sets) -> KiteModel:
         checker.add(f"{where}.law_form", f"expected one of {', '.join(LAW_FORMS)}, "
                                          f"found {form!r}")
     scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
+    torsion = checker.number(table, "torsion_scale", where, default=1.0, positive=True)
+    pressure = checker.number(table, "pressure_factor", where, default=1.0, positive=True)
     factors = {}
     for kind in ("rest_length_factors", "stiffness_factors"):
         factors[kind] = {}
@@ -126,7 +139,7 @@ def read_model_values(table, where, checker, line_sets) -> KiteModel:
                 continue
             factors[kind][name] = checker.number(given, name, f"{where}.{kind}", positive=True)
     return KiteModel(form, scale or 1.0, factors["rest_length_factors"],
-                     factors["stiffness_factors"])
+                     factors["stiffness_factors"], torsion or 1.0, pressure or 1.0)
 
 
 def read_model_file(path, campaign) -> KiteModel:

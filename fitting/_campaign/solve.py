@@ -71,11 +71,17 @@ _PROGRAMS: dict = {}
 
 class CaseSolver:
     """Solves a campaign's cases, compiling each route's program once per process (shared
-    by every solver of the same model file, suspension and hang schedule)."""
+    by every solver of the same model file, suspension and hang schedule).
 
-    def __init__(self, campaign: Campaign):
+    ``tangent_values``: when given, :meth:`tangents` always differentiates with respect to
+    these values (a superset of every ``names`` it is asked for) and returns the columns
+    asked for, so that fits of different sets of values (a diagnosis) share one compiled
+    program per route."""
+
+    def __init__(self, campaign: Campaign, tangent_values=None):
         self.campaign = campaign
         self.solver = jt.NewtonKKT(max_steps=campaign.hang.max_newton_steps)
+        self.tangent_values = None if tangent_values is None else tuple(tangent_values)
 
     def _schedule(self, case: CampaignCase, model_blend: float):
         stages = self.campaign.hang.load_stages
@@ -129,8 +135,14 @@ class CaseSolver:
         by forward mode through the solve (implicit function theorem; a drive only supplies
         the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
         [m per unit log value], converged)`` in the model file's numbering (held nodes do
-        not move). One more compiled program per route and set of names."""
-        names = tuple(names)
+        not move). One more compiled program per route and set of names (per route only, with
+        ``tangent_values``)."""
+        asked = tuple(names)
+        names = asked if self.tangent_values is None else self.tangent_values
+        missing = set(asked) - set(names)
+        if missing:
+            raise ValueError(f"tangents: {sorted(missing)} not among the solver's "
+                             f"tangent_values {list(names)}")
         plain = import_campaign_case(self.campaign, case, KiteModel(model.law_form))
         key, run, arguments = self._route(plain, case)
         theta = jnp.log(jnp.asarray([model_value(model, name) for name in names]))
@@ -154,7 +166,8 @@ class CaseSolver:
         mapped = plain.node_index >= 0
         tangent = np.zeros(plain.model.node_position.shape + (len(names),))
         tangent[mapped] = np.asarray(jacobian)[plain.node_index[mapped]]
-        return plain.kite_positions(np.asarray(x)), tangent, bool(converged)
+        columns = [names.index(name) for name in asked]
+        return plain.kite_positions(np.asarray(x)), tangent[..., columns], bool(converged)
 
     def solve(self, case: CampaignCase, model: KiteModel) -> CaseSolution:
         """Solve ``case`` with ``model``'s values (compiled ahead, then timed warm)."""

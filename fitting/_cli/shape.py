@@ -18,6 +18,15 @@ fitted by gradient to the calibration cases (:mod:`fitting._campaign.calibrate`)
 determine), ``cases.csv`` and ``rms_before_after.png`` (each case's smooth RMS before and
 after).
 
+``jaxtube shape diagnose CAMPAIGN.toml [--effect NAME|FILE.py:NAME ...] [--model model.json]
+[--cases A B ...] --out DIR``: which candidate effect the model misses
+(:mod:`fitting._campaign.diagnose`): the baseline (``[diagnose] baseline``) fitted to the
+calibration cases, the candidates (``[diagnose] candidates``, default every built-in effect,
+plus ``--effect``) ranked by what they gain on cases left out of the fit, the best added
+until none passes: ``report.txt``, ``diagnosis.json``, ``model.json`` (the model it ends
+with), ``cases.csv``, ``rms_before_after.png`` (baseline and final) and ``ranking.png``.
+Exit 1 when the final model did not converge.
+
 The campaign format: ``docs/spec-format.md`` ("Campaign files"); the workflow:
 ``docs/shapes.md``. Exit codes: 0 success; 1 written, but a solve did not converge (or, for
 ``compare``, a registration did not meet its tolerance); 2 bad input (every problem named
@@ -29,11 +38,19 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import time
 from pathlib import Path
 
+from tqdm import tqdm
+
+import jaxtube as jt
+
 from .._campaign.calibrate import calibrate_campaign
+from .._campaign.diagnose import diagnose_campaign
+from .._campaign.diagnosis_report import diagnosis_report, ranking_figure
+from .._campaign.effects import resolve_shape_effect, shape_effects
 from .._campaign.file import read_campaign
-from .._campaign.kite import VALUE_KINDS
+from .._campaign.kite import unknown_value_words
 from .._campaign.model import CampaignError, read_model_file
 from .._campaign.report import (
     compare_cases,
@@ -42,6 +59,7 @@ from .._campaign.report import (
     rms_before_after_figure,
 )
 from .._campaign.solve import CaseSolver
+from .._json import write_json
 from .._shape.files import ShapeFileError
 from .._shape.markers import load_markers
 from .common import bad_output_directory, write_directory
@@ -58,7 +76,8 @@ def add_shape(subparsers) -> None:
             ("compare", "solve the cases with markers and score them", run_compare),
             ("predict", "solve every case and write its node positions", run_predict),
             ("calibrate", "fit model values to the calibration cases by gradient",
-             run_calibrate)):
+             run_calibrate),
+            ("diagnose", "find which candidate effect the model misses", run_diagnose)):
         command = commands.add_parser(name, help=help_text, description=help_text)
         command.add_argument("campaign", type=Path, help="campaign file (TOML)")
         command.add_argument("--model", type=Path, default=None,
@@ -67,12 +86,18 @@ def add_shape(subparsers) -> None:
         command.add_argument("--cases", nargs="+", default=None,
                              help="case names (default: every case"
                                   + {"compare": " with markers)", "predict": ")",
-                                     "calibrate": " whose role is calibrate)"}[name])
+                                     "calibrate": " whose role is calibrate)",
+                                     "diagnose": " whose role is calibrate)"}[name])
         if name == "calibrate":
             command.add_argument("--values", nargs="+", required=True,
                                  help="the values to fit: bending_scale, "
                                       "rest_length_factors.SET, stiffness_factors.SET (SET: "
                                       "a line set of the campaign)")
+        if name == "diagnose":
+            command.add_argument("--effect", action="append", default=[],
+                                 metavar="NAME|FILE.py:NAME",
+                                 help="another candidate: a built-in effect or a user's "
+                                      "ShapeEffect (docs/shapes.md)")
         if name == "compare":
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
@@ -84,7 +109,8 @@ def add_shape(subparsers) -> None:
 def _read_then(run, command: str, args) -> int:
     """Read the campaign (and model) of ``args``, then ``run(args, campaign, model, case
     names)``; exit code 2 after saying why when they do not read (nothing written)."""
-    read = _read(args, need_markers=command != "predict", calibration=command == "calibrate")
+    read = _read(args, need_markers=command != "predict",
+                 calibration=command in ("calibrate", "diagnose"))
     return 2 if read is None else run(args, *read)
 
 
@@ -167,12 +193,9 @@ def run_predict(args, campaign, model, names) -> int:
 def run_calibrate(args, campaign, model, names) -> int:
     """Run ``shape calibrate``; returns the exit code."""
     for value in args.values:
-        kind, _, line_set = value.partition(".")
-        if value != "bending_scale" and not (kind in VALUE_KINDS and
-                                             line_set in campaign.line_sets):
-            print(f"error: --values: unknown value {value!r} (expected bending_scale, "
-                  f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
-                  f"{', '.join(campaign.line_sets) or 'no line sets'})", file=sys.stderr)
+        words = unknown_value_words(campaign, value)
+        if words is not None:
+            print(f"error: --values: {words}", file=sys.stderr)
             return 2
     found = calibrate_campaign(campaign, model, args.values, names, CaseSolver(campaign),
                                log=lambda text: print(text, file=sys.stderr, flush=True))
@@ -193,4 +216,64 @@ def run_calibrate(args, campaign, model, names) -> int:
         print(f"{case}: smooth RMS {found.rms_mm_before[case]:.1f} -> "
               f"{found.rms_mm_after[case]:.1f} mm")
     print(f"wrote {args.out / 'model.json'} (converged {found.converged}: {found.message})")
+    return 0 if found.converged else 1
+
+
+def _diagnosis_inputs(args, campaign):
+    """``(baseline values, candidate effects)`` of ``shape diagnose``, or ``None`` after
+    saying why (exit code 2)."""
+    problems = []
+    for value in campaign.diagnose_baseline:
+        words = unknown_value_words(campaign, value)
+        if words is not None:
+            problems.append(jt.Problem(str(campaign.path), words, "diagnose.baseline"))
+    names = list(campaign.diagnose_candidates or shape_effects(campaign))
+    candidates = []
+    for key, name in [("diagnose.candidates", n) for n in names] + \
+            [("--effect", n) for n in args.effect]:
+        try:
+            candidates.append(resolve_shape_effect(name, campaign))
+        except ValueError as error:
+            problems.append(jt.Problem(str(campaign.path), str(error), key))
+    if problems:
+        print(f"error: {CampaignError(problems)}", file=sys.stderr)
+        return None
+    return campaign.diagnose_baseline, candidates
+
+
+def run_diagnose(args, campaign, model, names) -> int:
+    """Run ``shape diagnose``; returns the exit code."""
+    inputs = _diagnosis_inputs(args, campaign)
+    if inputs is None:
+        return 2
+    if len(names) < 2:
+        print(f"error: {args.campaign}: diagnose leaves one case out and needs at least two "
+              f"calibration cases, found {len(names)}", file=sys.stderr)
+        return 2
+    baseline, candidates = inputs
+    values = tuple(dict.fromkeys(tuple(baseline) + tuple(
+        v for effect in candidates for v in effect.values)))
+    solver = CaseSolver(campaign, tangent_values=values)
+    started = time.perf_counter()
+    with tqdm(desc="shape diagnose fits", unit="fit", file=sys.stderr) as bar:
+        found = diagnose_campaign(campaign, model, baseline, candidates, names, solver,
+                                  log=lambda text: bar.write(text, file=sys.stderr),
+                                  bar=bar)
+    seconds = time.perf_counter() - started
+    document = found.to_json() | {"seconds": seconds, "cases": names}
+    before, after = found.baseline.rms_mm_after, found.final.rms_mm_after
+    rows = "case,rms_mm_start,rms_mm_baseline,rms_mm_final\n" + "".join(
+        f"{c},{found.baseline.rms_mm_before[c]!r},{before[c]!r},{after[c]!r}\n"
+        for c in names)
+    report = diagnosis_report(found, names, seconds)
+    write_directory(args.out, {
+        "diagnosis.json": lambda path: write_json(path, document),
+        "model.json": lambda path: write_json(path, found.final.to_json()),
+        "cases.csv": lambda path: path.write_text(rows),
+        "report.txt": lambda path: path.write_text(report),
+        "rms_before_after.png": lambda path: rms_before_after_figure(before, after, path),
+        "ranking.png": lambda path: ranking_figure(found, path),
+    })
+    print(report, end="")
+    print(f"wrote {args.out}")
     return 0 if found.converged else 1
