@@ -19,7 +19,8 @@ from scipy.spatial.transform import Rotation
 import fitting
 from fitting._cli.shape import add_shape
 
-from .kite_fem_mini import write_mini_kite
+from .kite_fem_mini import mini_kite_arrays, write_mini_kite
+from .test_shape_smooth import CAMPAIGN as SMOOTH_CAMPAIGN
 from .test_shape_smooth import surface_points
 
 BENDING = 0.4
@@ -27,22 +28,10 @@ BENDING = 0.4
 #: bending law depends on the pressure); two keep each diagnosis near a CPU-minute.
 CANDIDATES = ["rest_length.bridle", "pressure"]
 
-CAMPAIGN = """
-[structure]
-kite_fem = "mini.npz"
-suspension = [11, 12]
-
-[tubes]
-LE = [1, 5]
-strut0 = [2, 7]
-strut1 = [4, 9]
-
-[line_sets]
-bridle = [[11, 1], [11, 2], [12, 4], [12, 5]]
-
-[hang]
-load_stages = [0.5, 1.0]
-max_newton_steps = 100
+CAMPAIGN = SMOOTH_CAMPAIGN.split("[[cases]]")[0] + """
+[tube_classes]
+leading_edge = ["LE"]
+struts = ["strut0", "strut1"]
 
 [diagnose]
 baseline = ["bending_scale"]
@@ -57,11 +46,11 @@ markers = "{name}.csv"
 """ for name, node, mass in (("centre", 3, 1.0), ("strut0", 7, 0.6), ("strut1", 9, 0.6)))
 
 
-def write_campaign(folder, bridle: float, candidates=CANDIDATES):
+def write_campaign(folder, bridle: float):
     """The campaign in ``folder`` with markers of the kite at bending scale ``BENDING`` and
     the bridle's rest lengths times ``bridle``."""
     write_mini_kite(folder / "mini.npz")
-    text = CAMPAIGN.replace("{candidates}", json.dumps(candidates))
+    text = CAMPAIGN.replace("{candidates}", json.dumps(CANDIDATES))
     for name in ("centre", "strut0", "strut1"):
         (folder / f"{name}.csv").write_text("group,idx_in_group,x_m,y_m,z_m\n")
     (folder / "campaign.toml").write_text(text)
@@ -138,19 +127,23 @@ WRONG = ShapeEffect("wrong", ("rest_length_factors.nowhere",), ((0.9, 1.1),))
 """
 
 
-def test_candidate_effects_built_in_user_and_refused(tmp_path):
+def test_candidate_effects_built_in_user_and_refused(tmp_path, capsys):
     """Built-in effects expand over the campaign's line sets with their plausible ranges; a
     user's function in a file is loaded (path relative to the campaign); an unknown effect or
     value is refused with the key and nothing is written."""
     write_mini_kite(tmp_path / "mini.npz")
+    nodes = mini_kite_arrays()["initial_conditions_array"][:, :3]
+    rows = "".join(f"{g},{k},{x:.17g},{y:.17g},{z:.17g}\n" for g, members in
+                   (("LE", range(1, 6)), ("strut0", (2, 6, 7)), ("strut1", (4, 8, 9)))
+                   for k, (x, y, z) in enumerate(nodes[list(members)]))
     for name in ("centre", "strut0", "strut1"):
-        (tmp_path / f"{name}.csv").write_text("group,idx_in_group,x_m,y_m,z_m\n")
+        (tmp_path / f"{name}.csv").write_text("group,idx_in_group,x_m,y_m,z_m\n" + rows)
     (tmp_path / "campaign.toml").write_text(CAMPAIGN.replace("{candidates}", '["bending"]'))
     (tmp_path / "user.py").write_text(USER_EFFECT)
     campaign = fitting.read_campaign(tmp_path / "campaign.toml")
     effects = fitting.shape_effects(campaign)
     assert set(effects) == {"bending", "torsion", "pressure", "rest_length.bridle",
-                            "stiffness.bridle"}
+                            "stiffness.bridle", "bending.leading_edge", "bending.struts"}
     assert effects["rest_length.bridle"].bounds == {"rest_length_factors.bridle": (0.9, 1.1)}
     user = fitting.resolve_shape_effect("user.py:bridle_and_bending", campaign)
     assert user.values == ("rest_length_factors.bridle", "torsion_scale")
@@ -160,13 +153,28 @@ def test_candidate_effects_built_in_user_and_refused(tmp_path):
             fitting.resolve_shape_effect(text, campaign)
     with pytest.raises(ValueError, match="one plausible range"):
         fitting.ShapeEffect("bad", ("torsion_scale",), ())
+    capsys.readouterr()
     assert run_diagnose(tmp_path / "campaign.toml", tmp_path / "bad", "--effect",
                         "user.py:WRONG") == 2
+    assert "--effect: effect 'user.py:WRONG': unknown value" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
-    model = fitting.with_values(fitting.KiteModel(), ("torsion_scale", "pressure_factor"),
-                                (2.0, 1.1))
+    model = fitting.with_values(fitting.KiteModel(bending_scale=0.5),
+                                ("torsion_scale", "pressure_factor",
+                                 "bending_class_factors.struts"), (2.0, 1.1, 3.0))
     assert (model.torsion_scale, model.pressure_factor) == (2.0, 1.1)
     assert fitting.read_model_file(_model_json(tmp_path, model), campaign) == model
+    # The values reach the parameters: the struts' bending law x 3 on top of the kite's
+    # 0.5, the torsion law x 2 and the pressure x 1.1 on every tube.
+    case = campaign.case("centre")
+    plain = fitting.import_campaign_case(campaign, case, fitting.KiteModel())
+    changed = fitting.import_campaign_case(campaign, case, model)
+    strut = np.asarray(["7" in n or "9" in n for n in changed.tube_names])
+    assert strut.sum() == 2 and (~strut).sum() >= 1
+    bending = np.array([float(law.factor) for law in changed.params.bending_laws])
+    assert bending == pytest.approx(np.where(strut, 1.5, 0.5))
+    assert [float(law.factor) for law in changed.params.torsion_laws] == [2.0] * len(strut)
+    assert np.asarray(changed.params.pressure) == pytest.approx(
+        1.1 * np.asarray(plain.params.pressure))
 
 
 def _model_json(folder, model):

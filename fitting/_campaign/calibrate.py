@@ -53,7 +53,7 @@ UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
 DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "torsion_scale": (0.1, 10.0),
                   "pressure_factor": (0.8, 1.25), "rest_length_factors": (0.8, 1.2),
-                  "stiffness_factors": (0.1, 10.0)}
+                  "stiffness_factors": (0.1, 10.0), "bending_class_factors": (0.05, 20.0)}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -19,7 +19,10 @@ Built-in effects (:func:`shape_effects`; ``SET``: each of the campaign's ``[line
   a hand gauge's error at 0.1-0.3 bar and the tube's pressure change when hung;
 - ``rest_length.SET``: the rest lengths of a line set (``rest_length_factors.SET``), 0.9-1.1:
   Dyneema bridles shrink and creep by a few per cent; sewing tolerances of a canopy edge;
-- ``stiffness.SET``: the axial stiffness of a line set (``stiffness_factors.SET``), 0.1-10.
+- ``stiffness.SET``: the axial stiffness of a line set (``stiffness_factors.SET``), 0.1-10;
+- ``bending.CLASS``: the bending law of one tube class (``[tube_classes]``, e.g. the
+  leading edge or the struts; ``bending_class_factors.CLASS``) on top of the whole kite's,
+  0.2-5: leading edges and struts differ in diameter, seams and reinforcement.
 
 A user's effect is a :class:`ShapeEffect` (or a function of the campaign returning one) in a
 Python file, named ``path/to/file.py:NAME`` in the campaign's ``[diagnose] candidates`` or
@@ -99,6 +102,11 @@ def shape_effects(campaign: Campaign) -> dict:
             name = f"{prefix}.{line_set}"
             effects[name] = ShapeEffect(name, (f"{kind}.{line_set}",), (plausible,),
                                         f"{words} {line_set!r} scaled")
+    for tube_class in campaign.tube_classes:
+        name = f"bending.{tube_class}"
+        effects[name] = ShapeEffect(name, (f"bending_class_factors.{tube_class}",),
+                                    ((0.2, 5.0),), f"the bending law of the {tube_class!r} "
+                                                   "tubes scaled")
     return effects
 
 

@@ -112,6 +112,8 @@ class Campaign:
         canopy_group: the marker group on the canopy.
         length_pairs: ``{length name: (node_a, node_b)}``.
         cases: the cases, in file order.
+        tube_classes: ``{class: (marker group, ...)}``: named sets of ``[tubes]`` groups
+            whose tubes share a bending factor (``[tube_classes]``).
         diagnose_baseline: the values the diagnosis' baseline fits (``[diagnose]
             baseline``); diagnose_candidates: the candidate effects' names (``[diagnose]
             candidates``; ``None``: every built-in effect).
@@ -128,6 +130,7 @@ class Campaign:
     canopy_group: str
     length_pairs: dict
     cases: tuple
+    tube_classes: dict = dataclasses.field(default_factory=dict)
     diagnose_baseline: tuple = ("bending_scale",)
     diagnose_candidates: tuple | None = None
 
@@ -243,7 +246,7 @@ def read_campaign(path) -> Campaign:
     except tomllib.TOMLDecodeError as error:
         raise CampaignError([jt.Problem(str(path), f"not TOML: {error}")]) from None
     checker.unknown_keys(data, ("structure", "model", "hang", "line_sets", "tubes",
-                                "lengths", "cases", "diagnose"), "")
+                                "lengths", "cases", "diagnose", "tube_classes"), "")
     structure = data.get("structure", {})
     checker.unknown_keys(structure, ("kite_fem", "suspension", "gravity_m_s2"), "structure")
     if "kite_fem" not in structure:
@@ -270,7 +273,6 @@ def read_campaign(path) -> Campaign:
 
     line_sets = {name: _line_set(value, f"line_sets.{name}", checker, model)
                  for name, value in data.get("line_sets", {}).items()}
-    model_values = read_model_values(data.get("model", {}), "model", checker, line_sets)
 
     hang_table = data.get("hang", {})
     checker.unknown_keys(hang_table, [f.name for f in dataclasses.fields(HangSchedule)], "hang")
@@ -308,6 +310,16 @@ def read_campaign(path) -> Campaign:
             tubes[group] = segments
     if not tubes_table:
         checker.add("tubes", "missing (which tube of the model each marker group lies on)")
+
+    tube_classes = {}
+    for name, groups in data.get("tube_classes", {}).items():
+        if not (isinstance(groups, list) and groups and all(g in tubes_table for g in groups)):
+            checker.add(f"tube_classes.{name}", f"expected a list of [tubes] groups (of: "
+                                                f"{', '.join(tubes_table)}), found {groups!r}")
+            continue
+        tube_classes[name] = tuple(groups)
+    model_values = read_model_values(data.get("model", {}), "model", checker, line_sets,
+                                     tube_classes)
 
     pairs, length_rows, column = _read_lengths(data.get("lengths", {}), base, checker, model)
     cases, names = [], set()
@@ -369,7 +381,8 @@ def read_campaign(path) -> Campaign:
     if len(checker.report):
         raise CampaignError(checker.report.problems)
     return Campaign(path, model, suspension, gravity, model_values, hang, line_sets, tubes,
-                    canopy_group, pairs, tuple(cases), lists["baseline"] or ("bending_scale",),
+                    canopy_group, pairs, tuple(cases), tube_classes,
+                    lists["baseline"] or ("bending_scale",),
                     lists["candidates"])
 
 

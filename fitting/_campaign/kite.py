@@ -33,17 +33,39 @@ def line_set_rows(campaign: Campaign, name: str) -> np.ndarray:
     return np.flatnonzero([tuple(pair) in wanted for pair in springs.tolist()])
 
 
+def tube_class_members(campaign: Campaign, tube_names, tube_class: str) -> np.ndarray:
+    """``[T]`` bool: the tubes (named ``beams_<first>_<last>`` by
+    :func:`jaxtube.import_kite_fem`) of tube class ``tube_class``: both end nodes on the
+    beams of one of the class's ``[tubes]`` groups."""
+    members = []
+    for name in tube_names:
+        ends = {int(n) for n in name.split("_")[1:]}
+        members.append(any(ends <= {n for a, b, _ in campaign.tubes[group] for n in (a, b)}
+                           for group in campaign.tube_classes[tube_class]))
+    return np.asarray(members, bool)
+
+
 def with_model_values(campaign: Campaign, params: jt.StructureParameters,
-                      model: KiteModel) -> jt.StructureParameters:
-    """``params`` with ``model``'s bending factor on every tube's law and the rest lengths and
-    stiffnesses of each line set times their factors (the laws must already be of
-    ``model.law_form``:
-    :func:`import_campaign_case`)."""
+                      model: KiteModel, tube_names=None) -> jt.StructureParameters:
+    """``params`` with ``model``'s bending and torsion factors on every tube's laws, every
+    tube's pressure times the pressure factor, and the rest lengths and stiffnesses of each
+    line set times their factors (the laws must already be scaled laws of ``model.law_form``:
+    :func:`import_campaign_case`). The tubes of a tube class (``tube_names``: the imported
+    kite's, needed for ``model.bending_class_factors``) have their bending factor times the
+    class's."""
     scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
-    for field, factor in (("bending_laws", model.bending_scale),
-                          ("torsion_laws", model.torsion_scale)):
+    count = len(params.bending_laws)
+    bending = [model.bending_scale] * count
+    for name, factor in model.bending_class_factors.items():
+        if tube_names is None:
+            raise ValueError("with_model_values: bending_class_factors need the tube names")
+        for t in np.flatnonzero(tube_class_members(campaign, tube_names, name)):
+            bending[t] = bending[t] * factor
+    for field, factors in (("bending_laws", bending),
+                           ("torsion_laws", [model.torsion_scale] * count)):
         laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(factor))
-                     if isinstance(law, scaled) else law for law in getattr(params, field))
+                     if isinstance(law, scaled) else law
+                     for law, factor in zip(getattr(params, field), factors))
         params = eqx.tree_at(lambda p, field=field: getattr(p, field), params, laws)
     params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor)
     elements = params.elements
@@ -58,33 +80,36 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     return eqx.tree_at(lambda p: p.elements, params, elements)
 
 
-VALUE_KINDS = ("rest_length_factors", "stiffness_factors")
+VALUE_KINDS = ("rest_length_factors", "stiffness_factors", "bending_class_factors")
 #: The model's values that act on the whole kite (the others are per line set).
 KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor")
 
 
 def model_value(model: KiteModel, name: str) -> float:
     """One of ``model``'s values by name: one of :data:`KITE_VALUES`,
-    ``"rest_length_factors.SET"`` or ``"stiffness_factors.SET"`` (a line set without a
-    factor: 1)."""
+    ``"rest_length_factors.SET"``, ``"stiffness_factors.SET"`` or
+    ``"bending_class_factors.CLASS"`` (a line set or class without a factor: 1)."""
     if name in KITE_VALUES:
         return getattr(model, name)
     kind, _, line_set = name.partition(".")
     if kind not in VALUE_KINDS or not line_set:
         raise ValueError(f"unknown model value {name!r} (expected one of "
-                         f"{', '.join(KITE_VALUES)}, 'rest_length_factors.SET' or "
-                         "'stiffness_factors.SET')")
+                         f"{', '.join(KITE_VALUES)}, 'rest_length_factors.SET', "
+                         "'stiffness_factors.SET' or 'bending_class_factors.CLASS')")
     return getattr(model, kind).get(line_set, 1.0)
 
 
 def unknown_value_words(campaign: Campaign, name: str) -> str | None:
     """Why ``name`` is not one of ``campaign``'s model values (``None``: it is)."""
-    kind, _, line_set = name.partition(".")
-    if name in KITE_VALUES or (kind in VALUE_KINDS and line_set in campaign.line_sets):
+    kind, _, member = name.partition(".")
+    known = campaign.tube_classes if kind == "bending_class_factors" else campaign.line_sets
+    if name in KITE_VALUES or (kind in VALUE_KINDS and member in known):
         return None
     return (f"unknown value {name!r} (expected {', '.join(KITE_VALUES)}, "
             f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
-            f"{', '.join(campaign.line_sets) or 'no line sets'})")
+            f"{', '.join(campaign.line_sets) or 'no line sets'}, or "
+            f"bending_class_factors.CLASS with CLASS one of: "
+            f"{', '.join(campaign.tube_classes) or 'no tube classes'})")
 
 
 def with_values(model: KiteModel, names, values) -> KiteModel:
@@ -122,7 +147,8 @@ def import_campaign_case(campaign: Campaign, case: CampaignCase,
         forces[node] = forces.get(node, np.zeros(3)) + load.force_N
     for node, force in forces.items():
         params = jt.with_node_dead_load(imported.structure, params, node, force)
-    return dataclasses.replace(imported, params=with_model_values(campaign, params, model))
+    return dataclasses.replace(imported, params=with_model_values(campaign, params, model,
+                                                                  imported.tube_names))
 
 
 def campaign_tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:

@@ -38,6 +38,8 @@ class KiteModel:
         bending_scale: the factor (1: the 2011 law as published).
         rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
         stiffness_factors: ``{line set: factor}`` on the stiffness [N/m] of a line set.
+        bending_class_factors: ``{tube class: factor}`` on the bending law of the tubes of a
+            class (``[tube_classes]``), on top of ``bending_scale``.
         torsion_scale: the factor on every tube's torsion law (Breukels' 2011 torsion law,
             :class:`jaxtube.ScaledLaw`; 1: as published).
         pressure_factor: the factor on every case's tube overpressure (1: the pressure the
@@ -50,6 +52,7 @@ class KiteModel:
     stiffness_factors: dict = dataclasses.field(default_factory=dict)
     torsion_scale: float = 1.0
     pressure_factor: float = 1.0
+    bending_class_factors: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"law_form": self.law_form, "bending_scale": float(self.bending_scale),
@@ -58,7 +61,9 @@ class KiteModel:
                 "rest_length_factors": {k: float(v) for k, v in
                                         self.rest_length_factors.items()},
                 "stiffness_factors": {k: float(v) for k, v in
-                                      self.stiffness_factors.items()}}
+                                      self.stiffness_factors.items()},
+                "bending_class_factors": {k: float(v) for k, v in
+                                          self.bending_class_factors.items()}}
 
 
 class ProblemCollector:
@@ -109,10 +114,10 @@ class ProblemCollector:
                          f"unknown key (expected one of: {', '.join(known)})")
 
 
-def read_model_values(table, where, checker, line_sets) -> KiteModel:
+def read_model_values(table, where, checker, line_sets, tube_classes) -> KiteModel:
     """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
     known = ("law_form", "bending_scale", "torsion_scale", "pressure_factor",
-             "rest_length_factors", "stiffness_factors")
+             "rest_length_factors", "stiffness_factors", "bending_class_factors")
     for key in table:
         if key not in known:
             checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
@@ -125,21 +130,24 @@ def read_model_values(table, where, checker, line_sets) -> KiteModel:
     torsion = checker.number(table, "torsion_scale", where, default=1.0, positive=True)
     pressure = checker.number(table, "pressure_factor", where, default=1.0, positive=True)
     factors = {}
-    for kind in ("rest_length_factors", "stiffness_factors"):
+    for kind, known_names, words in (("rest_length_factors", line_sets, "line set"),
+                                     ("stiffness_factors", line_sets, "line set"),
+                                     ("bending_class_factors", tube_classes, "tube class")):
         factors[kind] = {}
         given = table.get(kind, {})
         if not isinstance(given, dict):
-            checker.add(f"{where}.{kind}", "expected a table {line set = factor}")
+            checker.add(f"{where}.{kind}", f"expected a table {{{words} = factor}}")
             continue
         for name in given:
-            if name not in line_sets:
+            if name not in known_names:
                 checker.add(f"{where}.{kind}.{name}",
-                            f"unknown line set (the campaign's line sets: "
-                            f"{', '.join(line_sets) or 'none'})")
+                            f"unknown {words} (the campaign's {words}s: "
+                            f"{', '.join(known_names) or 'none'})")
                 continue
             factors[kind][name] = checker.number(given, name, f"{where}.{kind}", positive=True)
     return KiteModel(form, scale or 1.0, factors["rest_length_factors"],
-                     factors["stiffness_factors"], torsion or 1.0, pressure or 1.0)
+                     factors["stiffness_factors"], torsion or 1.0, pressure or 1.0,
+                     factors["bending_class_factors"])
 
 
 def read_model_file(path, campaign) -> KiteModel:
@@ -156,7 +164,8 @@ def read_model_file(path, campaign) -> KiteModel:
     if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
         raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
                                                    "'model'", "model")])
-    model = read_model_values(table["model"], "model", checker, campaign.line_sets)
+    model = read_model_values(table["model"], "model", checker, campaign.line_sets,
+                              campaign.tube_classes)
     if len(checker.report):
         raise CampaignError(checker.report.problems)
     return model

@@ -131,7 +131,7 @@ class CaseSolver:
     def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
         """The case's equilibrium and its tangents with respect to the logarithms of
         ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``,
-        ``"stiffness_factors.SET"``),
+        ``"stiffness_factors.SET"``, ...: :func:`fitting.model_value`),
         by forward mode through the solve (implicit function theorem; a drive only supplies
         the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
         [m per unit log value], converged)`` in the model file's numbering (held nodes do
@@ -150,7 +150,8 @@ class CaseSolver:
 
         def positions(theta, params, *schedule):
             values = with_values(model, names, jnp.exp(theta))
-            result = run(with_model_values(campaign, params, values), *schedule)
+            result = run(with_model_values(campaign, params, values, plain.tube_names),
+                         *schedule)
             solution = result if case.route != "drive" else jax.tree_util.tree_map(
                 lambda x: x[None], result[1].equilibrium)
             x = solution.node_position[-1]
