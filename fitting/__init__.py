@@ -46,6 +46,7 @@ from ._calibrate.problem import (
 from ._calibrate.result import FitResult, ParameterEstimate
 from ._campaign.calibrate import CampaignCalibration, calibrate_campaign
 from ._campaign.diagnose import ShapeCandidateRanking, ShapeDiagnosis, diagnose_campaign
+from ._campaign.diagnosis_report import diagnosis_report
 from ._campaign.effects import ShapeEffect, resolve_shape_effect, shape_effects
 from ._campaign.file import (
     Campaign,
@@ -133,7 +134,7 @@ __all__ = [
     "import_campaign_case", "line_set_rows", "model_value", "read_campaign",
     "read_model_file", "with_model_values", "with_values", "SmoothScore", "continuous_radius",
     "smooth_shape_score", "ShapeCandidateRanking", "ShapeDiagnosis", "ShapeEffect",
-    "diagnose_campaign", "resolve_shape_effect", "shape_effects",
+    "diagnose_campaign", "diagnosis_report", "resolve_shape_effect", "shape_effects",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 
