@@ -16,15 +16,15 @@ Run from the repository root: ``python experiments/v3_marker_scores.py`` (writes
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-from _v3_kite_fem import CASES, DATA, kite_fem_state, v3_tube_surfaces  # noqa: E402
+import fitting
 
-import fitting  # noqa: E402
+DATA = Path(__file__).resolve().parent / "data" / "v3_hanging"
+CASES = ("P1_S", "P1_PL1", "P1_PL2", "P1_TL1", "P1_TL2")
 
 PUBLISHED_UNDEFORMED_MM = (695, 654, 639, 139, 99)
 PUBLISHED_KITE_FEM_STATES_MM = (169, 369, 389, 112, 79)
@@ -34,16 +34,19 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args(argv)
-    undeformed = v3_tube_surfaces()
+    campaign = fitting.read_campaign(DATA / "campaign.toml")
+    undeformed = fitting.campaign_tube_surfaces(campaign)
     rows, lines = [], []
     header = (f"{'case':>7} {'undeformed':>10} {'published':>9} {'kite_fem':>9} "
               f"{'published':>9} {'canopy undef.':>13} {'canopy kite_fem':>15} {'order':>9}")
     lines.append(header)
     for k, case in enumerate(CASES):
-        markers = fitting.load_markers(DATA / "markers" / f"{case}.csv")
+        markers = fitting.load_markers(campaign.case(case).markers)
         started = time.perf_counter()
         null = fitting.score_shape(undeformed, markers)
-        state = fitting.score_shape(undeformed.with_positions(kite_fem_state(k + 1)), markers)
+        solved = np.load(DATA / "kite_fem" / "states" / f"load_case_{k + 1}.npz")
+        state = fitting.score_shape(
+            undeformed.with_positions(solved["coords_current"].reshape(-1, 3)), markers)
         seconds = time.perf_counter() - started
         rows.append({"case": case, "load_case": k + 1,
                      "undeformed": null.summary(), "kite_fem_state": state.summary(),

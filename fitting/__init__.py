@@ -6,7 +6,8 @@ One public namespace: measured data (:func:`load_measurements`), the bench model
 comparison with measurements (:func:`compare`), effects (:class:`Effect` and the built-ins)
 and the diagnosis of what is missing (:func:`diagnose`, :func:`score_test`), and shapes
 against measured markers (:func:`load_markers`, :class:`TubeSurfaces`, :func:`register`,
-:func:`marker_rms`, :func:`score_shape`, :func:`fit_to_markers`).
+:func:`marker_rms`, :func:`score_shape`), and campaigns of measured kite shapes
+(:func:`read_campaign`, :class:`CaseSolver`).
 The independent continuum reference solver is :mod:`fitting.continuum`; the command line is
 :mod:`fitting._cli` (``jaxtube``).
 """
@@ -43,6 +44,28 @@ from ._calibrate.problem import (
     make_problem,
 )
 from ._calibrate.result import FitResult, ParameterEstimate
+from ._campaign.calibrate import CampaignCalibration, calibrate_campaign
+from ._campaign.diagnose import ShapeCandidateRanking, ShapeDiagnosis, diagnose_campaign
+from ._campaign.diagnosis_report import diagnosis_report
+from ._campaign.effects import ShapeEffect, resolve_shape_effect, shape_effects
+from ._campaign.file import (
+    Campaign,
+    CampaignCase,
+    CaseLoad,
+    HangSchedule,
+    read_campaign,
+)
+from ._campaign.kite import (
+    campaign_lengths,
+    campaign_tube_surfaces,
+    import_campaign_case,
+    line_set_rows,
+    model_value,
+    with_model_values,
+    with_values,
+)
+from ._campaign.model import CampaignError, KiteModel, read_model_file
+from ._campaign.solve import CaseSolution, CaseSolver
 from ._cluster import open_client as open_cluster_client
 from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_measurements
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
@@ -72,7 +95,6 @@ from ._shape.files import (
     load_triangles,
     load_tubes,
 )
-from ._shape.fit import MarkerFit, fit_to_markers
 from ._shape.markers import MarkerSet, load_markers, spanwise_family
 from ._shape.registration import (
     MarkerDistances,
@@ -83,6 +105,7 @@ from ._shape.registration import (
     register,
 )
 from ._shape.score import ShapeScore, score_shape
+from ._shape.smooth import SmoothScore, continuous_radius, smooth_shape_score
 from ._shape.surfaces import TubeSurfaces
 from ._study.designs import DesignData, StudyDesign, make_design_data
 from ._study.designs import draw_design as draw_study_design
@@ -114,12 +137,19 @@ __all__ = [
     "MarkerDistances", "MarkerSet", "Registration", "RegistrationResult", "ShapeFileError",
     "ShapeFileProblem", "ShapeScore", "TubeSurfaces", "load_markers", "load_positions",
     "load_triangles", "load_tubes", "marker_distances", "marker_rms", "register",
-    "score_shape", "spanwise_family", "MarkerFit", "fit_to_markers",
-    "BoundedSearch", "bounded_search",
+    "score_shape", "spanwise_family",
+        "BoundedSearch", "bounded_search",
     "DesignData", "StudyDesign", "diagnose_design", "draw_study_design", "make_design_data",
     "open_cluster_client", "run_study", "stored_study_record", "study_figure", "study_report",
     "study_summary", "sweep_on_cluster", "json_ready", "write_json", "noise_estimate_errors",
     "noise_summary",
+    "CampaignCalibration", "calibrate_campaign",
+    "Campaign", "CampaignCase", "CampaignError", "CaseLoad", "CaseSolution", "CaseSolver",
+    "HangSchedule", "KiteModel", "campaign_lengths", "campaign_tube_surfaces",
+    "import_campaign_case", "line_set_rows", "model_value", "read_campaign",
+    "read_model_file", "with_model_values", "with_values", "SmoothScore", "continuous_radius",
+    "smooth_shape_score", "ShapeCandidateRanking", "ShapeDiagnosis", "ShapeEffect",
+    "diagnose_campaign", "diagnosis_report", "resolve_shape_effect", "shape_effects",
     "STATUS_MESSAGES", "SweepStatus", "SweepResult", "SweepSettings", "regime_boundaries", "sweep",
 ]
 

@@ -30,12 +30,13 @@ from .diagnose import add_demo, add_diagnose
 from .fit import add_fit, add_predict
 from .modes import add_modes
 from .score_shape import add_score_shape
+from .shape import add_shape
 from .simulate import add_simulate
 from .sweep import add_sweep
 
 # One function per subcommand registers its parser; add a new subcommand here.
 SUBCOMMANDS = (add_simulate, add_fit, add_predict, add_diagnose, add_demo, add_sweep,
-               add_score_shape, add_modes)
+               add_score_shape, add_modes, add_shape)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -227,6 +227,22 @@ def start_rotations(marker_points: np.ndarray, model_points: np.ndarray) -> list
     return rotations
 
 
+def refuse_degenerate_markers(points: np.ndarray, source: str) -> None:
+    """Raise ``ValueError`` (naming ``source``) unless the tube markers ``[m, 3]`` [m]
+    determine a rigid motion: at least three distinct points, not all on one line (a
+    rotation about that line would leave every distance unchanged)."""
+    distinct = np.unique(points, axis=0)
+    if len(distinct) < 3:
+        raise ValueError(f"{source}: a registration needs at least 3 distinct tube markers, "
+                         f"found {len(distinct)} distinct position"
+                         f"{'s' if len(distinct) != 1 else ''} among {len(points)} markers")
+    spread = np.linalg.svd(distinct - distinct.mean(0), compute_uv=False)
+    if spread[1] <= 1e-9 * spread[0]:
+        raise ValueError(f"{source}: the tube markers all lie on one line: a rotation about "
+                         "it is not determined, so no registration is (measure markers "
+                         "off that line)")
+
+
 def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="auto",
              canopy_group: str = CANOPY_GROUP, max_iterations: int = 60) -> RegistrationResult:
     """Best rigid registration of ``markers`` onto ``surfaces`` (search in the module
@@ -245,6 +261,7 @@ def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="aut
         raise ValueError(f"{markers.source}: a registration needs at least 3 tube markers, "
                          f"found {tube.size}")
     measured = np.asarray(markers.position)[tube]
+    refuse_degenerate_markers(measured, markers.source)
     centroid = measured.mean(0)
     # Padded to a multiple of 48 markers (weight 0) so marker files of similar size (e.g.
     # the V3 cases, 62-65 tube markers) share one compiled program.

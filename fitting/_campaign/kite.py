@@ -1,0 +1,194 @@
+"""A campaign's kite: imported per case with the model's values, its tube surfaces and canopy
+for the markers, its line sets and measured lengths.
+
+The structure is imported once per case (:func:`jaxtube.import_kite_fem`: the case's
+pressure; every case has the same structure and parameter shapes), the case's loads are set
+as dead forces on their nodes, and the model's values (:class:`KiteModel`) are put into the
+parameters: the bending law's factor (``law_form``: :class:`jaxtube.CurvatureScaledLaw` or
+:class:`jaxtube.ScaledLaw` over Breukels' 2011 law) and the rest lengths of each named line
+set times its factor. Values are parameters, not structure: one compiled program serves
+every value (:mod:`fitting._campaign.solve`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+import jaxtube as jt
+
+from .._shape.surfaces import TubeSurfaces
+from .file import Campaign, CampaignCase
+from .model import KiteModel
+
+
+def line_set_rows(campaign: Campaign, name: str) -> np.ndarray:
+    """Rows of the model's ``spring_matrix`` (= its lines, same order) of line set ``name``
+    (every spring joining one of the set's node pairs), ``[k]`` int."""
+    springs = np.sort(np.asarray(campaign.kite_fem.spring_nodes, dtype=np.int64), axis=1)
+    wanted = {tuple(sorted(pair)) for pair in campaign.line_sets[name]}
+    return np.flatnonzero([tuple(pair) in wanted for pair in springs.tolist()])
+
+
+def tube_class_members(campaign: Campaign, tube_names, tube_class: str) -> np.ndarray:
+    """``[T]`` bool: the tubes (named ``beams_<first>_<last>`` by
+    :func:`jaxtube.import_kite_fem`) of tube class ``tube_class``: both end nodes on the
+    beams of one of the class's ``[tubes]`` groups."""
+    members = []
+    for name in tube_names:
+        ends = {int(n) for n in name.split("_")[1:]}
+        members.append(any(ends <= {n for a, b, _ in campaign.tubes[group] for n in (a, b)}
+                           for group in campaign.tube_classes[tube_class]))
+    return np.asarray(members, bool)
+
+
+def with_model_values(campaign: Campaign, params: jt.StructureParameters,
+                      model: KiteModel, tube_names=None) -> jt.StructureParameters:
+    """``params`` with ``model``'s bending and torsion factors on every tube's laws, every
+    tube's pressure times the pressure factor, and the rest lengths and stiffnesses of each
+    line set times their factors (the laws must already be scaled laws of ``model.law_form``:
+    :func:`import_campaign_case`). The tubes of a tube class (``tube_names``: the imported
+    kite's, needed for ``model.bending_class_factors``) have their bending factor times the
+    class's."""
+    scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
+    count = len(params.bending_laws)
+    bending = [model.bending_scale] * count
+    for name, factor in model.bending_class_factors.items():
+        if tube_names is None:
+            raise ValueError("with_model_values: bending_class_factors need the tube names")
+        for t in np.flatnonzero(tube_class_members(campaign, tube_names, name)):
+            bending[t] = bending[t] * factor
+    for field, factors in (("bending_laws", bending),
+                           ("torsion_laws", [model.torsion_scale] * count)):
+        laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(factor))
+                     if isinstance(law, scaled) else law
+                     for law, factor in zip(getattr(params, field), factors))
+        params = eqx.tree_at(lambda p, field=field: getattr(p, field), params, laws)
+    params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor)
+    elements = params.elements
+    for kind, values in (("line_rest_length", model.rest_length_factors),
+                         ("line_stiffness", model.stiffness_factors)):
+        array = getattr(elements, kind)
+        for name, factor in values.items():
+            in_set = np.zeros(array.shape, bool)
+            in_set[line_set_rows(campaign, name)] = True
+            array = array * jnp.where(in_set, factor, 1.0)  # differentiable in the factor
+        elements = eqx.tree_at(lambda e, kind=kind: getattr(e, kind), elements, array)
+    return eqx.tree_at(lambda p: p.elements, params, elements)
+
+
+VALUE_KINDS = ("rest_length_factors", "stiffness_factors", "bending_class_factors")
+#: The model's values that act on the whole kite (the others are per line set).
+KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor")
+
+
+def model_value(model: KiteModel, name: str) -> float:
+    """One of ``model``'s values by name: one of :data:`KITE_VALUES`,
+    ``"rest_length_factors.SET"``, ``"stiffness_factors.SET"`` or
+    ``"bending_class_factors.CLASS"`` (a line set or class without a factor: 1)."""
+    if name in KITE_VALUES:
+        return getattr(model, name)
+    kind, _, line_set = name.partition(".")
+    if kind not in VALUE_KINDS or not line_set:
+        raise ValueError(f"unknown model value {name!r} (expected one of "
+                         f"{', '.join(KITE_VALUES)}, 'rest_length_factors.SET', "
+                         "'stiffness_factors.SET' or 'bending_class_factors.CLASS')")
+    return getattr(model, kind).get(line_set, 1.0)
+
+
+def unknown_value_words(campaign: Campaign, name: str) -> str | None:
+    """Why ``name`` is not one of ``campaign``'s model values (``None``: it is)."""
+    kind, _, member = name.partition(".")
+    known = campaign.tube_classes if kind == "bending_class_factors" else campaign.line_sets
+    if name in KITE_VALUES or (kind in VALUE_KINDS and member in known):
+        return None
+    return (f"unknown value {name!r} (expected {', '.join(KITE_VALUES)}, "
+            f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
+            f"{', '.join(campaign.line_sets) or 'no line sets'}, or "
+            f"bending_class_factors.CLASS with CLASS one of: "
+            f"{', '.join(campaign.tube_classes) or 'no tube classes'})")
+
+
+def with_values(model: KiteModel, names, values) -> KiteModel:
+    """``model`` with its values ``names`` (:func:`model_value`) set to ``values`` (numbers
+    or traced scalars)."""
+    changed = {kind: dict(getattr(model, kind)) for kind in VALUE_KINDS}
+    for k, name in enumerate(names):
+        model_value(model, name)  # validates the name
+        if name in KITE_VALUES:
+            changed[name] = values[k]
+        else:
+            kind, _, line_set = name.partition(".")
+            changed[kind][line_set] = values[k]
+    return dataclasses.replace(model, **changed)
+
+
+def import_campaign_case(campaign: Campaign, case: CampaignCase,
+                         model: KiteModel) -> jt.KiteFemImport:
+    """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""
+    law = (jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0)
+           if model.law_form == "curvature" else
+           jt.ScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0))
+    suspension = campaign.suspension
+    # The importer's own V3 loads stay off (zero masses; its load nodes are set to a
+    # suspension node so that they exist in any model): the case's loads follow.
+    imported = jt.import_kite_fem(campaign.kite_fem, pressure_bar=case.pressure_bar,
+                                  bending_law=law, suspension=suspension,
+                                  gravity=campaign.gravity, centre_node=suspension[0],
+                                  tip_nodes=(suspension[0], suspension[0]),
+                                  torsion_law=jt.ScaledLaw(jt.EmpiricalTorsionLaw2011(), 1.0))
+    params = imported.params
+    forces: dict[int, np.ndarray] = {}
+    for load in case.loads:
+        node = int(imported.node_index[load.node])
+        forces[node] = forces.get(node, np.zeros(3)) + load.force_N
+    for node, force in forces.items():
+        params = jt.with_node_dead_load(imported.structure, params, node, force)
+    return dataclasses.replace(imported, params=with_model_values(campaign, params, model,
+                                                                  imported.tube_names))
+
+
+def campaign_tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:
+    """The marker groups' tubes (``[tubes]``: beams with half their diameter as radius) and
+    the canopy triangles at kite positions ``[N, 3]`` [m] (default: the model file's)."""
+    model = campaign.kite_fem
+    rows = [(group, a, b, radius, radius) for group, segments in campaign.tubes.items()
+            for a, b, radius in segments]
+    if positions is None:
+        positions = model.node_position
+    return TubeSurfaces.from_segments(positions, rows, canopy_triangles(model))
+
+
+def canopy_triangles(model: jt.KiteFemModel) -> np.ndarray:
+    """``[t, 3]`` canopy triangles: the 3-cliques of canopy springs and beams. A canopy
+    spring has both ends on tubes or on triangles of springs (the canopy is a mesh with
+    diagonals; bridle lines form trees of lines and pulleys, without triangles)."""
+    springs = np.asarray(model.spring_nodes, dtype=np.int64).tolist()
+    beams = np.asarray(model.beam_nodes, dtype=np.int64).tolist()
+
+    def neighbours_of(edges):
+        neighbours: dict[int, set] = {}
+        for a, b in edges:
+            neighbours.setdefault(a, set()).add(b)
+            neighbours.setdefault(b, set()).add(a)
+        return neighbours
+
+    linked = neighbours_of(springs)
+    mesh = {n for edge in beams for n in edge}
+    mesh |= {n for a, b in springs if linked[a] & linked[b] for n in (a, b)}
+    edges = {tuple(sorted(e)) for e in beams}
+    edges |= {tuple(sorted(e)) for e in springs if e[0] in mesh and e[1] in mesh}
+    neighbours = neighbours_of(edges)
+    triangles = {tuple(sorted((a, b, c))) for a, b in edges
+                 for c in neighbours[a] & neighbours[b]}
+    return np.asarray(sorted(triangles), int).reshape(-1, 3)
+
+
+def campaign_lengths(campaign: Campaign, positions) -> dict:
+    """``{length name: distance [m]}`` of ``[lengths.pairs]`` at kite positions ``[N, 3]``."""
+    positions = np.asarray(positions, dtype=float)
+    return {name: float(np.linalg.norm(positions[a] - positions[b]))
+            for name, (a, b) in campaign.length_pairs.items()}

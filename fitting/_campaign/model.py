@@ -1,0 +1,171 @@
+"""A campaign's model values (:class:`KiteModel`, the ``[model]`` table or a model.json),
+and the errors of campaign and model files (:class:`CampaignError`, every problem with its
+file, key and reason)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import jaxtube as jt
+
+LAW_FORMS = ("curvature", "moment")
+
+
+class CampaignError(ValueError):
+    """An invalid campaign (or model) file; ``problems`` lists every :class:`jaxtube.Problem`
+    found (``source: key: reason``)."""
+
+    def __init__(self, problems):
+        self.problems = tuple(problems)
+        count = len(self.problems)
+        lines = [f"{count} problem{'s' if count != 1 else ''} in campaign file "
+                 f"{self.problems[0].source}:"]
+        super().__init__("\n".join(lines + [f"  {p}" for p in self.problems]))
+
+
+@dataclasses.dataclass(frozen=True)
+class KiteModel:
+    """The parameter values a campaign's kite is solved with.
+
+    Attributes:
+        law_form: how ``bending_scale`` acts on Breukels' 2011 bending law: ``"curvature"``
+            (:class:`jaxtube.CurvatureScaledLaw`: stiffness x scale, the wrinkling and
+            collapse moments kept) or ``"moment"`` (:class:`jaxtube.ScaledLaw`: the whole
+            curve x scale, as the peers scale it).
+        bending_scale: the factor (1: the 2011 law as published).
+        rest_length_factors: ``{line set: factor}`` on the rest lengths of a named line set.
+        stiffness_factors: ``{line set: factor}`` on the stiffness [N/m] of a line set.
+        bending_class_factors: ``{tube class: factor}`` on the bending law of the tubes of a
+            class (``[tube_classes]``), on top of ``bending_scale``.
+        torsion_scale: the factor on every tube's torsion law (Breukels' 2011 torsion law,
+            :class:`jaxtube.ScaledLaw`; 1: as published).
+        pressure_factor: the factor on every case's tube overpressure (1: the pressure the
+            case states; a gauge that reads 10 % low is 1.1).
+    """
+
+    law_form: str = "curvature"
+    bending_scale: float = 1.0
+    rest_length_factors: dict = dataclasses.field(default_factory=dict)
+    stiffness_factors: dict = dataclasses.field(default_factory=dict)
+    torsion_scale: float = 1.0
+    pressure_factor: float = 1.0
+    bending_class_factors: dict = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"law_form": self.law_form, "bending_scale": float(self.bending_scale),
+                "torsion_scale": float(self.torsion_scale),
+                "pressure_factor": float(self.pressure_factor),
+                "rest_length_factors": {k: float(v) for k, v in
+                                        self.rest_length_factors.items()},
+                "stiffness_factors": {k: float(v) for k, v in
+                                      self.stiffness_factors.items()},
+                "bending_class_factors": {k: float(v) for k, v in
+                                          self.bending_class_factors.items()}}
+
+
+class ProblemCollector:
+    """Collects the problems of one file while it is read (``number`` and ``node`` read one
+    value with its check; a failed check records the key and the reason and returns
+    ``None``)."""
+
+    def __init__(self, source: Path):
+        self.report = jt.ProblemReport(str(source))
+
+    def add(self, key, message):
+        self.report.add(key, message)
+
+    def number(self, table, key, where, default=None, minimum=None, positive=False):
+        value = table.get(key, default)
+        if value is None:
+            if default is None and key not in table:
+                self.add(f"{where}.{key}", "missing (expected a number)")
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or \
+                not math.isfinite(value):
+            self.add(f"{where}.{key}", f"expected a finite number, found {value!r}")
+            return None
+        if positive and not value > 0:
+            self.add(f"{where}.{key}", f"expected a positive number, found {value!r}")
+            return None
+        if minimum is not None and value < minimum:
+            self.add(f"{where}.{key}", f"expected a number >= {minimum}, found {value!r}")
+            return None
+        return float(value)
+
+    def node(self, value, where, node_count, movable=None):
+        if isinstance(value, bool) or not isinstance(value, int) or \
+                not 0 <= value < node_count:
+            self.add(where, f"expected a node of the model (an integer 0..{node_count - 1}), "
+                            f"found {value!r}")
+            return None
+        if movable is not None and value not in movable:
+            self.add(where, f"node {value} is held or fixed in the model (no element moves "
+                            "it, or it is a suspension node): a load there does nothing")
+            return None
+        return int(value)
+
+    def unknown_keys(self, table, known, where):
+        for key in table:
+            if key not in known:
+                self.add(f"{where}.{key}" if where else key,
+                         f"unknown key (expected one of: {', '.join(known)})")
+
+
+def read_model_values(table, where, checker, line_sets, tube_classes) -> KiteModel:
+    """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
+    known = ("law_form", "bending_scale", "torsion_scale", "pressure_factor",
+             "rest_length_factors", "stiffness_factors", "bending_class_factors")
+    for key in table:
+        if key not in known:
+            checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
+                                          f"{', '.join(known)})")
+    form = table.get("law_form", "curvature")
+    if form not in LAW_FORMS:
+        checker.add(f"{where}.law_form", f"expected one of {', '.join(LAW_FORMS)}, "
+                                         f"found {form!r}")
+    scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
+    torsion = checker.number(table, "torsion_scale", where, default=1.0, positive=True)
+    pressure = checker.number(table, "pressure_factor", where, default=1.0, positive=True)
+    factors = {}
+    for kind, known_names, words in (("rest_length_factors", line_sets, "line set"),
+                                     ("stiffness_factors", line_sets, "line set"),
+                                     ("bending_class_factors", tube_classes, "tube class")):
+        factors[kind] = {}
+        given = table.get(kind, {})
+        if not isinstance(given, dict):
+            checker.add(f"{where}.{kind}", f"expected a table {{{words} = factor}}")
+            continue
+        for name in given:
+            if name not in known_names:
+                checker.add(f"{where}.{kind}.{name}",
+                            f"unknown {words} (the campaign's {words}s: "
+                            f"{', '.join(known_names) or 'none'})")
+                continue
+            factors[kind][name] = checker.number(given, name, f"{where}.{kind}", positive=True)
+    return KiteModel(form, scale or 1.0, factors["rest_length_factors"],
+                     factors["stiffness_factors"], torsion or 1.0, pressure or 1.0,
+                     factors["bending_class_factors"])
+
+
+def read_model_file(path, campaign) -> KiteModel:
+    """A model.json written by ``jaxtube shape`` (or by hand): the ``[model]`` keys as JSON,
+    checked against ``campaign``'s line sets."""
+    path = Path(path)
+    checker = ProblemCollector(path)
+    try:
+        table = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
+    except json.JSONDecodeError as error:
+        raise CampaignError([jt.Problem(str(path), f"not JSON: {error}")]) from None
+    if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
+        raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
+                                                   "'model'", "model")])
+    model = read_model_values(table["model"], "model", checker, campaign.line_sets,
+                              campaign.tube_classes)
+    if len(checker.report):
+        raise CampaignError(checker.report.problems)
+    return model

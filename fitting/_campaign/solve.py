@@ -1,0 +1,213 @@
+"""A campaign's cases solved: one compiled program per route, shared by every case and value.
+
+Routes (``CampaignCase.route``), each from the undeformed shape:
+
+- ``"gravity"``: gravity alone in the first solve (the later ones start at the equilibrium
+  and take no Newton step), the lines' blend at the model's width;
+- ``"stages"``: gravity and loads stepped through ``[hang] load_stages``
+  (:func:`jaxtube.hang_kite`), the first stage's blend ``first_stage_tension_smoothing``,
+  the later ones the model's, so the equilibrium reported is the model's;
+- ``"drive"``: a hanging mass: gravity first (the mass taken off), then the mass's node
+  driven along gravity until the actuator carries its weight
+  (:func:`jaxtube.drive_to_dead_load`), then the dead-load solve from there: the equilibrium
+  reported. Force control fails on the V3 kite's centre loads (experiments/README.md).
+
+The programs take the parameters (so every pressure, load and model value) and, for the
+first two routes, the stages and blend widths as traced arguments: each is compiled once per
+process (:class:`CaseSolver`), ahead of the first timed solve, so every ``seconds`` is warm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxtube as jt
+
+from .file import Campaign, CampaignCase
+from .kite import import_campaign_case, model_value, with_model_values, with_values
+from .model import KiteModel
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CaseSolution:
+    """One case solved.
+
+    Attributes:
+        case: the case.
+        imported: the imported kite with the case's loads and the model's values.
+        solution: the equilibrium (a :class:`jaxtube.Solution` with a leading stage axis;
+            the last entry is the case's).
+        positions: ``[N, 3]`` node positions [m] in the model file's numbering and frame.
+        converged: the equilibrium reported converged.
+        newton_iterations: per solve (stages, then the dead-load solve of a drive).
+        stage_converged: per solve, likewise.
+        drive: the drive's record (route ``"drive"``), else ``None``.
+        hang: the route in words.
+        seconds: the warm solve [s]; compile_seconds: its program's compilation [s].
+    """
+
+    case: CampaignCase
+    imported: jt.KiteFemImport
+    solution: jt.Solution
+    positions: np.ndarray
+    converged: bool
+    newton_iterations: list
+    stage_converged: list
+    drive: dict | None
+    hang: str
+    seconds: float
+    compile_seconds: float
+
+
+# Compiled programs of this process, shared by every CaseSolver of the same kite and hang
+# schedule (a V3 program takes a minute or more to compile): key -> (program, seconds).
+_PROGRAMS: dict = {}
+
+
+class CaseSolver:
+    """Solves a campaign's cases, compiling each route's program once per process (shared
+    by every solver of the same model file, suspension and hang schedule).
+
+    ``tangent_values``: when given, :meth:`tangents` always differentiates with respect to
+    these values (a superset of every ``names`` it is asked for) and returns the columns
+    asked for, so that fits of different sets of values (a diagnosis) share one compiled
+    program per route."""
+
+    def __init__(self, campaign: Campaign, tangent_values=None):
+        self.campaign = campaign
+        self.solver = jt.NewtonKKT(max_steps=campaign.hang.max_newton_steps)
+        self.tangent_values = None if tangent_values is None else tuple(tangent_values)
+
+    def _schedule(self, case: CampaignCase, model_blend: float):
+        stages = self.campaign.hang.load_stages
+        if case.route == "gravity":
+            return (1.0,) * len(stages), (model_blend,) * len(stages)
+        first = self.campaign.hang.first_stage_tension_smoothing
+        return stages, ((model_blend if first is None else first),) + \
+            (model_blend,) * (len(stages) - 1)
+
+    def _route(self, imported: jt.KiteFemImport, case: CampaignCase):
+        """``(key, run, arguments)``: the case's route as a function of the parameters (and
+        the stages and blend widths), its cache key and its arguments."""
+        drive_node = int(imported.node_index[case.loads[0].node]) if case.route == "drive" \
+            else None
+        key = (str(self.campaign.kite_fem.path), self.campaign.suspension, self.campaign.hang,
+               "drive" if drive_node is not None else "hang",
+               type(imported.params.bending_laws[0]).__name__, drive_node)
+        structure, solver, hang = imported.structure, self.solver, self.campaign.hang
+        if drive_node is None:
+            def run(params, load_factors, blends):
+                return jt.hang_kite(structure, params, solver=solver, load_factors=load_factors,
+                                    tension_smoothing=blends)
+
+            return key, run, (imported.params, *map(jnp.asarray, self._schedule(
+                case, float(imported.params.elements.tension_smoothing))))
+
+        def run(params):
+            gravity_only = jt.with_node_dead_load(structure, params, drive_node, jnp.zeros(3))
+            stages = jt.hang_kite(structure, gravity_only, solver=solver,
+                                  load_factors=(1.0,) * len(hang.load_stages))
+            hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
+            driven = jt.drive_to_dead_load(
+                structure, params, drive_node, params.gravity, initial=hung, solver=solver,
+                steps=hang.drive_steps, max_increment=hang.drive_increment_m)
+            return stages, driven
+
+        return key, run, (imported.params,)
+
+    def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
+        key, run, arguments = self._route(imported, case)
+        if key not in _PROGRAMS:
+            started = time.perf_counter()
+            program = jax.jit(run).lower(*arguments).compile()
+            _PROGRAMS[key] = (program, time.perf_counter() - started)
+        return _PROGRAMS[key]
+
+    def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
+        """The case's equilibrium and its tangents with respect to the logarithms of
+        ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``,
+        ``"stiffness_factors.SET"``, ...: :func:`fitting.model_value`),
+        by forward mode through the solve (implicit function theorem; a drive only supplies
+        the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
+        [m per unit log value], converged)`` in the model file's numbering (held nodes do
+        not move). One more compiled program per route and set of names (per route only, with
+        ``tangent_values``)."""
+        asked = tuple(names)
+        names = asked if self.tangent_values is None else self.tangent_values
+        missing = set(asked) - set(names)
+        if missing:
+            raise ValueError(f"tangents: {sorted(missing)} not among the solver's "
+                             f"tangent_values {list(names)}")
+        plain = import_campaign_case(self.campaign, case, KiteModel(model.law_form))
+        key, run, arguments = self._route(plain, case)
+        theta = jnp.log(jnp.asarray([model_value(model, name) for name in names]))
+        campaign = self.campaign
+
+        def positions(theta, params, *schedule):
+            values = with_values(model, names, jnp.exp(theta))
+            result = run(with_model_values(campaign, params, values, plain.tube_names),
+                         *schedule)
+            solution = result if case.route != "drive" else jax.tree_util.tree_map(
+                lambda x: x[None], result[1].equilibrium)
+            x = solution.node_position[-1]
+            return x, (x, solution.converged[-1])
+
+        key = ("tangents", names) + key
+        if key not in _PROGRAMS:
+            started = time.perf_counter()
+            program = jax.jit(jax.jacfwd(positions, has_aux=True)).lower(
+                theta, *arguments).compile()
+            _PROGRAMS[key] = (program, time.perf_counter() - started)
+        jacobian, (x, converged) = _PROGRAMS[key][0](theta, *arguments)
+        mapped = plain.node_index >= 0
+        tangent = np.zeros(plain.model.node_position.shape + (len(names),))
+        tangent[mapped] = np.asarray(jacobian)[plain.node_index[mapped]]
+        columns = [names.index(name) for name in asked]
+        return plain.kite_positions(np.asarray(x)), tangent[..., columns], bool(converged)
+
+    def solve(self, case: CampaignCase, model: KiteModel) -> CaseSolution:
+        """Solve ``case`` with ``model``'s values (compiled ahead, then timed warm)."""
+        imported = import_campaign_case(self.campaign, case, model)
+        program, compile_seconds = self._program(imported, case)
+        blend = float(imported.params.elements.tension_smoothing)
+        arguments = (imported.params,)
+        if case.route != "drive":
+            arguments += tuple(map(jnp.asarray, self._schedule(case, blend)))
+        started = time.perf_counter()
+        result = jax.block_until_ready(program(*arguments))
+        seconds = time.perf_counter() - started
+        if case.route != "drive":
+            stages, solution, drive = result, result, None
+            factors, blends = self._schedule(case, blend)
+            words = (f"load factors {list(factors)} ({case.route}), the lines' blend widths "
+                     f"{list(blends)}")
+        else:
+            stages, driven = result
+            solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
+            accepted = np.asarray(driven.path.converged)
+            drive = {"reached": bool(driven.reached),
+                     "target_force_N": float(driven.target_force),
+                     "control_displacement_m": np.asarray(
+                         driven.path.control_displacement)[accepted].tolist(),
+                     "control_force_N": np.asarray(driven.path.control_force)[accepted].tolist(),
+                     "newton_iterations": np.asarray(driven.path.iterations).tolist(),
+                     "step_converged": accepted.tolist()}
+            hang = self.campaign.hang
+            words = (f"gravity (the mass taken off), then the mass at node "
+                     f"{case.loads[0].node} by displacement control "
+                     f"(jaxtube.drive_to_dead_load, {hang.drive_steps} steps of at most "
+                     f"{hang.drive_increment_m} m), then the dead-load solve")
+        iterations = np.asarray(stages.iterations).tolist()
+        stage_converged = np.asarray(stages.converged).tolist()
+        if drive is not None:
+            iterations.append(int(np.asarray(solution.iterations)[-1]))
+            stage_converged.append(bool(np.asarray(solution.converged)[-1]))
+        positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
+        return CaseSolution(case, imported, solution, positions,
+                            bool(np.asarray(solution.converged)[-1]), iterations,
+                            stage_converged, drive, words, seconds, compile_seconds)
