@@ -9,7 +9,7 @@ the node-for-node cross-check against kite_fem's own solved state of case 1
 as found (nothing is tuned to it). Results go to ``experiments/results/bench_v3_hang.txt``
 when ``--write`` is given.
 
-    python experiments/bench_v3_hang.py [--pressure-bar 0.15] [--bending-scale S]
+    python -m experiments.bench_v3_hang [--pressure-bar 0.15] [--bending-scale S]
         [--steps K] [--smoothing W1 W2 ...] [--linear-solver auto|dense|sparse|augmented]
         [--baseline ROUTE] [--repeats 5] [--write]
 

@@ -8,7 +8,7 @@ per schedule: converged, Newton steps per stage and run, seconds, and the larges
 of its equilibrium from the one-step equilibrium [m] (continuations must reach the same
 equilibrium). Breukels 2011 bending law x 0.377 (the committed calibration's point).
 
-    python experiments/bench_v3_newton_steps.py [auto|dense|sparse]
+    python -m experiments.bench_v3_newton_steps [auto|dense|sparse]
 
 Data: experiments/data/v3_hanging ("Structural model data from awegroup/kite_fem (MIT,
 (c) 2025 Patrick Roeleveld)").

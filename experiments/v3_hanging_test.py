@@ -7,9 +7,9 @@ PJ Haanen)"); its README describes the test, the cases and the peers' numbers.
 
 Subcommands::
 
-    python experiments/v3_hanging_test.py predict [--model M] [--cases ...] --out DIR
-    python experiments/v3_hanging_test.py score [--quick] [--model M] [--out DIR] [--no-figures]
-    python experiments/v3_hanging_test.py calibrate [--law-form curvature|moment]
+    python -m experiments.v3_hanging_test predict [--model M] [--cases ...] --out DIR
+    python -m experiments.v3_hanging_test score [--quick] [--model M] [--out DIR] [--no-figures]
+    python -m experiments.v3_hanging_test calibrate [--law-form curvature|moment]
         [--trailing-edge-case P1_TL1|P1_TL2|none] [--model M]
 
 ``predict`` is ``jaxtube shape predict campaign.toml --model M --out DIR``: for every case

@@ -10,7 +10,7 @@ markers against the canopy triangles, separately), the undeformed V3 model of ki
 Data: "Structural model data from awegroup/kite_fem (MIT, (c) 2025 Patrick Roeleveld);
 marker data from pimjhaanen/photogrammetry_thesis (MIT, (c) 2026 PJ Haanen)".
 
-Run from the repository root: ``python experiments/v3_marker_scores.py`` (writes
+Run from the repository root: ``python -m experiments.v3_marker_scores`` (writes
 ``experiments/results/v3_marker_scores.json`` and ``.txt``; ``--out DIR`` elsewhere).
 """
 

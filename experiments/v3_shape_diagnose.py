@@ -8,7 +8,7 @@ experiments/data/v3_hanging/campaign.toml --out DIR``.
 Writes ``experiments/results/v3_shape_diagnose/report.txt`` and ``model.json`` (read by
 ``jaxtube shape compare|predict --model``).
 
-Usage: ``python experiments/v3_shape_diagnose.py``
+Usage: ``python -m experiments.v3_shape_diagnose``
 """
 
 import json
