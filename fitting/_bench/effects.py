@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
 from pathlib import Path
 from typing import ClassVar
 
@@ -38,6 +37,8 @@ import equinox as eqx
 import jax.numpy as jnp
 
 import jaxtube as jt
+
+from .._user_files import import_user_file
 
 
 @dataclasses.dataclass(frozen=True)
@@ -370,13 +371,7 @@ def resolve_effect(text: str) -> type[Effect]:
 def _user_effect(path: str, modified: int, class_name: str) -> type[Effect]:
     file = Path(path)
     text = f"{path}:{class_name}"
-    spec = importlib.util.spec_from_file_location(f"jaxtube_user_effect_{file.stem}", file)
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    except Exception as error:  # the user's file: report, do not crash
-        raise ValueError(f"effect {text!r}: importing {file} failed: {error}") from error
-    cls = getattr(module, class_name, None)
+    cls = getattr(import_user_file(file, text), class_name, None)
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise ValueError(f"effect {text!r}: {file} has no Effect subclass {class_name!r}")
     if not cls.name or not cls.parameters:

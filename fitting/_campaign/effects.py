@@ -40,9 +40,9 @@ shortened together::
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 from pathlib import Path
 
+from .._user_files import import_user_file
 from .file import Campaign
 from .kite import unknown_value_words
 
@@ -125,13 +125,7 @@ def resolve_shape_effect(text: str, campaign: Campaign) -> ShapeEffect:
     file = Path(path) if Path(path).is_absolute() else campaign.path.parent / path
     if not file.is_file():
         raise ValueError(f"effect {text!r}: file not found: {file}")
-    spec = importlib.util.spec_from_file_location(f"jaxtube_shape_effect_{file.stem}", file)
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    except Exception as error:  # the user's file: report, do not crash
-        raise ValueError(f"effect {text!r}: importing {file} failed: {error}") from error
-    found = getattr(module, name, None)
+    found = getattr(import_user_file(file, text), name, None)
     effect = found(campaign) if callable(found) and not isinstance(found, ShapeEffect) \
         else found
     if not isinstance(effect, ShapeEffect):

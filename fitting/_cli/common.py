@@ -28,6 +28,18 @@ def add_model_size_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rigid segments of the model tube (default 12)")
 
 
+def add_structure_source_arguments(parser: argparse.ArgumentParser, kite_fem_help: str) -> None:
+    """The structure a command reads: a TOML spec, or with ``--kite-fem`` a kite_fem model
+    with its pressure [bar] and a factor on Breukels' 2011 bending law."""
+    parser.add_argument("spec", type=Path, nargs="?", default=None,
+                        help="the TOML spec file (or --kite-fem)")
+    parser.add_argument("--kite-fem", type=Path, default=None, metavar="NPZ", help=kite_fem_help)
+    parser.add_argument("--pressure-bar", type=positive_float, default=None,
+                        help="with --kite-fem: tube pressure [bar] (default: the file's)")
+    parser.add_argument("--bending-scale", type=positive_float, default=None,
+                        help="with --kite-fem: factor on Breukels' 2011 bending law")
+
+
 def _positive(text: str, convert, noun: str):
     """``convert(text)`` if it is a finite number > 0, else an argparse error naming ``noun``."""
     try:

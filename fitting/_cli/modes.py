@@ -32,7 +32,12 @@ import numpy as np  # noqa: E402
 
 import jaxtube as jt  # noqa: E402
 
-from .common import bad_output_directory, positive_float, positive_int, write_directory  # noqa: E402
+from .common import (  # noqa: E402
+    add_structure_source_arguments,
+    bad_output_directory,
+    positive_int,
+    write_directory,
+)
 
 MODE_COLUMNS = ("mode", "frequency_Hz", "angular_frequency_rad_per_s", "eigenvalue_rad2_per_s2",
                 "kind", "max_node_motion_mm_per_sqrt_kg")
@@ -43,15 +48,9 @@ def add_modes(subparsers) -> None:
         "modes", help="natural modes of a spec's structure (or a kite_fem model) at rest",
         description="Natural frequencies and mode shapes about the static equilibrium: "
                     "modes.csv, mode_shapes.png, summary.json in --out.")
-    parser.add_argument("spec", type=Path, nargs="?", default=None,
-                        help="the TOML spec file (or --kite-fem)")
-    parser.add_argument("--kite-fem", type=Path, default=None, metavar="NPZ",
-                        help="instead of a spec: a kite_fem model (initial.npz), hung from "
-                             "its suspension nodes")
-    parser.add_argument("--pressure-bar", type=positive_float, default=None,
-                        help="with --kite-fem: tube pressure [bar] (default: the file's)")
-    parser.add_argument("--bending-scale", type=positive_float, default=None,
-                        help="with --kite-fem: factor on Breukels' 2011 bending law")
+    add_structure_source_arguments(
+        parser, "instead of a spec: a kite_fem model (initial.npz), hung from its suspension "
+                "nodes")
     parser.add_argument("--count", type=positive_int, default=10,
                         help="modes to report (default 10)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")

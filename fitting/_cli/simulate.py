@@ -49,7 +49,12 @@ import jaxtube as jt
 from .._calibrate.parameters_file import load_law, without_effects_words
 from .._data.units import MM_PER_M
 from .._json import finite_or_none, write_json
-from .common import bad_output_directory, positive_float, positive_int, write_directory
+from .common import (
+    add_structure_source_arguments,
+    bad_output_directory,
+    positive_int,
+    write_directory,
+)
 from .dynamics import simulate_spec_dynamics
 from .kite_fem import simulate_kite_fem
 
@@ -81,17 +86,10 @@ def add_simulate(subparsers) -> None:
         "simulate", help="run the load path of a TOML spec and write results",
         description="Load a TOML structure spec, follow its load path and write path.csv, "
                     "force_deflection.png, deformed_shape.png and summary.json into --out.")
-    parser.add_argument("spec", type=Path, nargs="?", default=None,
-                        help="the TOML spec file (or --kite-fem)")
-    parser.add_argument("--kite-fem", type=Path, default=None, metavar="NPZ",
-                        help="instead of a spec: hang a kite_fem model (initial.npz) from its "
-                             "suspension nodes under gravity and write positions.csv, "
-                             "lines.csv, kite_shape.png, summary.json "
-                             "(fitting._cli.kite_fem); --steps: gravity steps (default 1)")
-    parser.add_argument("--pressure-bar", type=positive_float, default=None,
-                        help="with --kite-fem: tube pressure [bar] (default: the file's)")
-    parser.add_argument("--bending-scale", type=positive_float, default=None,
-                        help="with --kite-fem: factor on Breukels' 2011 bending law")
+    add_structure_source_arguments(
+        parser, "instead of a spec: hang a kite_fem model (initial.npz) from its suspension "
+                "nodes under gravity and write positions.csv, lines.csv, kite_shape.png, "
+                "summary.json (fitting._cli.kite_fem); --steps: gravity steps (default 1)")
     parser.add_argument("--out", type=Path, required=True,
                         help="output directory (created; existing files of the same names "
                              "are replaced, other files are left alone)")
