@@ -150,3 +150,21 @@ def test_every_problem_at_once_and_model_file_checked(tmp_path):
     model.write_text(json.dumps({"model": {"bending_scale": -1}}))
     with pytest.raises(fitting.CampaignError, match="model.bending_scale: expected a positive"):
         fitting.read_model_file(model, campaign)
+
+
+def test_measured_lengths_are_read_by_the_table_reader(tmp_path):
+    """The lengths file goes through the workbench's one table reader: a length that is not a
+    positive number is refused naming the file, the line and the column."""
+    lengths = tmp_path / "lengths.csv"
+    lengths.write_text("case,b\nhung,4.5\ntips,-1\n")
+    text = VALID.replace("[[cases]]", f'[lengths]\nfile = "{lengths}"\n\n[lengths.pairs]\n'
+                                      f'b = [2, 58]\n\n[[cases]]', 1)
+    text = text.replace('name = "hung"', 'name = "hung"\nlengths_row = "hung"')
+    lengths.write_text("case,b\nhung,4.5\ntips,4.7\n")
+    campaign = fitting.read_campaign(write(tmp_path, text))
+    assert campaign.case("hung").measured_lengths_m == {"b": 4.5}
+    lengths.write_text("case,b\nhung,4.5\ntips,-1\n")
+    with pytest.raises(fitting.CampaignError) as raised:
+        fitting.read_campaign(write(tmp_path, text))
+    assert f"{lengths}:3: column 'b': expected a positive length [m], found '-1'" in \
+        str(raised.value)

@@ -17,7 +17,6 @@ command whose campaign does not read.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import tomllib
 from pathlib import Path
@@ -26,6 +25,8 @@ import numpy as np
 
 import jaxtube as jt
 
+from .._shape.files import load_measured_lengths
+from .._tables import DataError
 from .model import CampaignError, KiteModel, ProblemCollector, read_model_values
 
 ROLES = ("calibrate", "predict")
@@ -178,19 +179,9 @@ def _read_lengths(table, base, checker, model):
     path = base / str(table["file"])
     column = str(table.get("case_column", "case"))
     try:
-        with open(path, newline="") as handle:
-            reader = csv.DictReader(handle)
-            header = reader.fieldnames or []
-            for name in [column, *pairs]:
-                if name not in header:
-                    checker.add("lengths.file", f"{path}: line 1: no column {name!r}")
-            if len(checker.report) == 0:
-                for line, row in enumerate(reader, start=2):
-                    try:
-                        rows[row[column].strip()] = {n: float(row[n]) for n in pairs}
-                    except (TypeError, ValueError):
-                        checker.add("lengths.file", f"{path}: line {line}: expected numbers "
-                                                    f"[m] in columns {', '.join(pairs)}")
+        rows = load_measured_lengths(path, column, list(pairs))
+    except DataError as error:
+        checker.add("lengths.file", str(error))
     except FileNotFoundError:
         checker.add("lengths.file", f"file not found: {path}")
     return pairs, rows, column

@@ -26,6 +26,9 @@ or tapered as ``radius_start_m,radius_end_m`` / ``diameter_start_m,diameter_end_
 ``node_1`` and ``node_2``); ``_mm`` for millimetres.
 
 **Canopy triangles** (:func:`load_triangles`): ``node_1,node_2,node_3``.
+
+**Measured lengths** (:func:`load_measured_lengths`), one row per load case: a column naming
+the case and one column per measured length in metres (positive).
 """
 
 from __future__ import annotations
@@ -168,3 +171,22 @@ def load_triangles(path, node_count: int | None = None) -> np.ndarray:
         triangles.append(corners)
     reader.finish()
     return np.asarray(triangles, int).reshape(-1, 3)
+
+
+def load_measured_lengths(path, case_column: str,
+                          names: list[str] | tuple[str, ...]) -> dict[str, dict[str, float]]:
+    """Read measured lengths: ``{case: {name: length [m]}}`` from the columns ``case_column``
+    (the case, unique) and ``names`` (positive lengths in metres)."""
+    reader = TableReader(path, "lengths", ",".join([case_column, *names]))
+    reader.require(case_column, *names)
+    reader.finish()
+    rows: dict[str, dict[str, float]] = {}
+    for row in reader.complete_rows:
+        case = reader.name(row, case_column, "a case name")
+        lengths = {name: reader.number(row, name, check=lambda x: x > 0,
+                                       expected="a positive length [m]") for name in names}
+        if case in rows:
+            reader.problem(row.line, case_column, f"case {case!r} appears twice")
+        rows.setdefault(case, lengths)
+    reader.finish()
+    return rows
