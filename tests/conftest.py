@@ -47,6 +47,8 @@ SLOW_FILES = frozenset({
     "test_user_effect.py", "test_notebook.py", "test_experiments.py", "test_fitting.py",
     "test_effects.py", "test_sparse_kkt.py", "test_convergence_honesty.py",
     "test_v3_hanging.py", "test_v3_import.py", "test_kite_fem_hang.py",
+    "test_shape_diagnose.py", "test_shape_smooth.py", "test_diagnosis_trust.py",
+    "test_dynamics_time.py", "test_dynamics_cli.py", "test_sweep_cluster.py",
 })
 
 
