@@ -69,6 +69,16 @@ class CaseSolution:
 _PROGRAMS: dict = {}
 
 
+def _compiled(key, function, *arguments):
+    """``(program, compile seconds)`` of ``function`` at ``arguments``, compiled once per
+    process under ``key``."""
+    if key not in _PROGRAMS:
+        started = time.perf_counter()
+        program = jax.jit(function).lower(*arguments).compile()
+        _PROGRAMS[key] = (program, time.perf_counter() - started)
+    return _PROGRAMS[key]
+
+
 class CaseSolver:
     """Solves a campaign's cases, compiling each route's program once per process (shared
     by every solver of the same model file, suspension and hang schedule).
@@ -122,11 +132,7 @@ class CaseSolver:
 
     def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
         key, run, arguments = self._route(imported, case)
-        if key not in _PROGRAMS:
-            started = time.perf_counter()
-            program = jax.jit(run).lower(*arguments).compile()
-            _PROGRAMS[key] = (program, time.perf_counter() - started)
-        return _PROGRAMS[key]
+        return _compiled(key, run, *arguments)
 
     def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
         """The case's equilibrium and its tangents with respect to the logarithms of
@@ -157,13 +163,9 @@ class CaseSolver:
             x = solution.node_position[-1]
             return x, (x, solution.converged[-1])
 
-        key = ("tangents", names) + key
-        if key not in _PROGRAMS:
-            started = time.perf_counter()
-            program = jax.jit(jax.jacfwd(positions, has_aux=True)).lower(
-                theta, *arguments).compile()
-            _PROGRAMS[key] = (program, time.perf_counter() - started)
-        jacobian, (x, converged) = _PROGRAMS[key][0](theta, *arguments)
+        program, _ = _compiled(("tangents", names) + key,
+                               jax.jacfwd(positions, has_aux=True), theta, *arguments)
+        jacobian, (x, converged) = program(theta, *arguments)
         mapped = plain.node_index >= 0
         tangent = np.zeros(plain.model.node_position.shape + (len(names),))
         tangent[mapped] = np.asarray(jacobian)[plain.node_index[mapped]]
