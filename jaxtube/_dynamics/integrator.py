@@ -53,7 +53,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
-from jax.flatten_util import ravel_pytree
 
 from .._equilibrium import Solution, tube_reference_geometry
 from .._mechanics.energy import energy_terms_and_constraints
@@ -61,17 +60,21 @@ from .._mechanics.kinematics import initial_state, spring_joints
 from .._mechanics.law_groups import law_groups
 from .._rotation import matmul3, rotation_vector, transpose3
 from .._solver.newton_kkt import NewtonKKT, solve_equilibrium
-from .._structure.structure import Structure, StructureParameters
-from .inertia import (
-    MassProperties,
-    mass_matrix,
-    mass_properties,
-    maximal_coordinates,
-    translational_mass,
-    velocity_map,
-)
+from .._structure.structure import GROUND, Structure, StructureParameters
+from .inertia import MassProperties, mass_properties, maximal_coordinates, translational_mass
 from .loads import parameters_at
 from .modes import constraint_count_of, node_positions
+from .step_system import (
+    CENTROID,
+    constrained_rates,
+    constraints_and_energy,
+    extended_state,
+    joint_damping_potential,
+    rotational_potential,
+    step_factors,
+    step_hessian_blocks,
+    structure_state,
+)
 
 
 class Damping(eqx.Module):
@@ -176,30 +179,52 @@ def _quadratic(delta: Array, weight: Array) -> Array:
 
 
 def _inertial_potential(structure, geometry, state, data: _StepData) -> Array:
-    """The incremental potential's inertial and damping part [J] (module docstring)."""
-    here = maximal_coordinates(structure, geometry, state)
+    """The incremental potential's inertial and damping part [J] (module docstring) at an
+    extended state (:mod:`.step_system`: the centroids are unknowns)."""
     h = data.step
-    dx = here.centroid - data.centroid_predicted
-    psi = rotation_vector(matmul3(transpose3(data.frame), here.frame))
-    dpsi = psi - data.increment_predicted
-    dp = here.point - data.point_predicted
-    inertial = (_quadratic(dx, data.translational_mass) + _quadratic(dpsi, data.inertia)
-                + jnp.sum(data.point_mass[:, None] * dp * dp))
-    rate_work = (jnp.sum(data.centroid_rate * jnp.einsum("sij,sj->si",
-                                                         data.translational_mass, dx))
-                 + jnp.sum(data.angular_rate * data.inertia * dpsi)
-                 + jnp.sum(data.point_rate * data.point_mass[:, None] * dp))
-    potential = 2.0 / h**2 * inertial + data.mass_damping * (inertial / h + rate_work)
-    dtheta = _joint_rotation(structure, geometry, state) - data.joint_rotation
-    return potential + jnp.sum(data.joint_damping * (dtheta * dtheta / h
-                                                     - data.joint_rate * dtheta))
+    weight = 2.0 / h**2 + data.mass_damping / h
+    potential = jnp.zeros(())
+    if structure.segment_count:
+        dx = state[CENTROID] - data.centroid_predicted
+        potential = (weight * _quadratic(dx, data.translational_mass)
+                     + data.mass_damping * jnp.sum(
+                         data.centroid_rate * jnp.einsum("sij,sj->si",
+                                                         data.translational_mass, dx)))
+        potential = potential + jnp.sum(jax.vmap(
+            rotational_potential, in_axes=(0, 0, 0, 0, 0, 0, None, None))(
+            state["segment_rotation"], geometry.frame, data.frame, data.increment_predicted,
+            data.angular_rate, data.inertia, weight, data.mass_damping))
+        topology = structure.spring_joint_topology()
+        parent = np.asarray(topology.parent_segment)
+        phi = state["segment_rotation"]
+        pair = jnp.concatenate([phi[np.maximum(parent, 0)],
+                                phi[np.asarray(topology.child_segment)]], axis=1)
+        potential = potential + jnp.sum(jax.vmap(
+            joint_damping_potential, in_axes=(0, 0, 0, 0, 0, 0, 0, None))(
+            pair, geometry.joint_parent_map, geometry.joint_child_map, parent == GROUND,
+            data.joint_rotation, data.joint_rate, data.joint_damping, h))
+    if structure.elements.active:
+        dp = state["point_position"] - data.point_predicted
+        potential = potential + jnp.sum(data.point_mass[:, None] * (
+            weight * dp * dp + data.mass_damping * data.point_rate * dp))
+    return potential
 
 
 def _step_objective(state, args, *, structure):
     params, geometry, data = args
-    terms, c = energy_terms_and_constraints(structure, geometry, state, params, None)
+    terms, c = constraints_and_energy(structure, geometry, state, params)
     inertial = _inertial_potential(structure, geometry, state, data)
     return jnp.concatenate([terms, inertial[None]]), c
+
+
+def _step_hessian(state, multipliers, args, *, structure):
+    params, geometry, data = args
+    return step_hessian_blocks(structure, geometry, params, state, multipliers, data)
+
+
+def _step_factors(state, args, *, structure):
+    params, geometry, _ = args
+    return step_factors(structure, geometry, params, state)
 
 
 def _kinetic_energy(mass: MassProperties, frame, motion: _Motion) -> Array:
@@ -208,69 +233,21 @@ def _kinetic_energy(mass: MassProperties, frame, motion: _Motion) -> Array:
                   + jnp.sum(mass.point_mass[:, None] * motion.point_velocity**2))
 
 
-def admissible_velocities(structure, params, geometry, state, mass: MassProperties,
-                          velocity, angular_velocity, point_velocity):
-    """The closest velocities (in the kinetic-energy norm) that the structure can have at
-    ``state``: ``W zdot`` with ``zdot`` minimising ``|W zdot - v|_D`` subject to
-    ``J zdot = 0``. Newmark's rule on maximal coordinates under constraints leaves the
-    velocity's component across the constraints undetermined (a double eigenvalue -1 of
-    the step: it grows linearly); projecting it away every step keeps the velocities those
-    of the constrained motion."""
-    z, unravel = ravel_pytree(state)
-    w = velocity_map(structure, geometry, state)
-    here = maximal_coordinates(structure, geometry, state)
-    s = structure.segment_count
-    n = z.shape[0]
-    translation = w[: 3 * s].reshape(s, 3, n)
-    rotation = w[3 * s: 6 * s].reshape(s, 3, n)
-    points = w[6 * s:].reshape(-1, 3, n)
-    weight = translational_mass(mass, here.frame)
-    mass_matrix_ = (jnp.einsum("sim,sij,sjn->mn", translation, weight, translation)
-                    + jnp.einsum("sim,si,sin->mn", rotation, mass.segment_inertia, rotation)
-                    + jnp.einsum("pim,p,pin->mn", points, mass.point_mass, points))
-    momentum = (jnp.einsum("sim,sij,sj->m", translation, weight, velocity)
-                + jnp.einsum("sim,si,si->m", rotation, mass.segment_inertia, angular_velocity)
-                + jnp.einsum("pim,p,pi->m", points, mass.point_mass, point_velocity))
-
-    def constraint_values(flat):
-        s_ = unravel(flat)
-        return energy_terms_and_constraints(structure, geometry, s_, params, None)[1]
-
-    jacobian = jax.jacfwd(constraint_values)(z)
-    m = jacobian.shape[0]
-    system = jnp.block([[mass_matrix_, jacobian.T], [jacobian, jnp.zeros((m, m))]])
-    rates = jnp.linalg.solve(system, jnp.concatenate([momentum, jnp.zeros(m)]))[:n]
-    projected = w @ rates
-    return (projected[: 3 * s].reshape(s, 3), projected[3 * s: 6 * s].reshape(s, 3),
-            projected[6 * s:].reshape(-1, 3))
-
-
-def _rest_acceleration(structure, params, geometry, state, multipliers) -> _Motion:
-    """The motion at rest with the consistent acceleration: ``[M J^T; J 0] [zdd; mu] =
-    [-grad E; 0]`` (velocities zero, so no velocity terms), mapped to maximal coordinates."""
-    z, unravel = ravel_pytree(state)
-
-    def objective(flat):
-        s = unravel(flat)
-        terms, c = energy_terms_and_constraints(structure, geometry, s, params, None)
-        return jnp.sum(terms), c
-
-    gradient = jax.grad(lambda f: objective(f)[0])(z)
-    jacobian = jax.jacfwd(lambda f: objective(f)[1])(z)
-    mass = mass_matrix(structure, params, geometry, state)
-    n, m = z.shape[0], jacobian.shape[0]
-    system = jnp.block([[mass, jacobian.T], [jacobian, jnp.zeros((m, m))]])
-    solution = jnp.linalg.solve(system, jnp.concatenate([-gradient, jnp.zeros(m)]))
-    maximal = velocity_map(structure, geometry, state) @ solution[:n]
+def _rest_acceleration(structure, params, geometry, state, mass, frame, solver) -> _Motion:
+    """The motion at rest with the consistent acceleration: ``M a + J^T mu = -grad E``,
+    ``J a = 0`` (velocities zero, so no velocity terms), in maximal coordinates."""
+    gradient = jax.grad(lambda s: jnp.sum(constraints_and_energy(structure, geometry, s,
+                                                                 params)[0]))(state)
     s, p = structure.segment_count, structure.elements.unknown_count
-    joints = _joint_rotation(structure, geometry, state)
     zeros = jnp.zeros((s, 3))
-    return _Motion(velocity=zeros, acceleration=maximal[: 3 * s].reshape(s, 3),
-                   angular_velocity=zeros,
-                   angular_acceleration=maximal[3 * s: 6 * s].reshape(s, 3),
-                   point_velocity=jnp.zeros((p, 3)),
-                   point_acceleration=maximal[6 * s:].reshape(p, 3),
-                   joint_rotation=joints, joint_rate=jnp.zeros_like(joints))
+    (acceleration, angular, point), _ = constrained_rates(
+        structure, params, geometry, state, mass, translational_mass(mass, frame),
+        (zeros, zeros, jnp.zeros((p, 3))), force=gradient, solver=solver)
+    joints = _joint_rotation(structure, geometry, state)
+    return _Motion(velocity=zeros, acceleration=acceleration, angular_velocity=zeros,
+                   angular_acceleration=angular, point_velocity=jnp.zeros((p, 3)),
+                   point_acceleration=point, joint_rotation=joints,
+                   joint_rate=jnp.zeros_like(joints))
 
 
 def simulate_dynamics(structure: Structure, params: StructureParameters, time_step,
@@ -305,12 +282,19 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
     h = jnp.asarray(time_step, dtype=float)
     state = initial_state(structure, params) if initial is None else initial.state
     m = constraint_count_of(structure, params, state)
-    multipliers = (jnp.zeros((m,)) if initial is None else initial.multipliers[:m])
+    multipliers = jnp.concatenate([jnp.zeros((m,)) if initial is None
+                                   else initial.multipliers[:m],
+                                   jnp.zeros((3 * structure.segment_count,))])
+    state = extended_state(structure, geometry, state)
     params0 = parameters_at(params, loads, support_motions, jnp.zeros(()))
-    motion = _rest_acceleration(structure, params0, geometry, state, multipliers)
     mass = mass_properties(structure, params, geometry)
+    start = maximal_coordinates(structure, geometry, state)
+    motion = _rest_acceleration(structure, params0, geometry, state, mass, start.frame, solver)
     beta_k = damping.stiffness_proportional * (joint_stiffness(structure, params, geometry)
                                                if structure.segment_count else jnp.zeros((0, 3)))
+    objective, hessian, factors = (partial(model, structure=structure) for model in
+                                   (_step_objective, _step_hessian, _step_factors))
+    factors = factors if structure.segment_count else None
 
     def one_step(carry, index):
         state, multipliers, motion = carry
@@ -318,11 +302,12 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
         params_t = parameters_at(params, loads, support_motions, time)
         here = maximal_coordinates(structure, geometry, state)
         quarter = h**2 / 4
+        weight = translational_mass(mass, here.frame)
         data = _StepData(
             step=h,
             centroid_predicted=here.centroid + h * motion.velocity + quarter * motion.acceleration,
             centroid_rate=motion.velocity + h / 2 * motion.acceleration,
-            translational_mass=translational_mass(mass, here.frame),
+            translational_mass=weight,
             frame=here.frame,
             increment_predicted=h * motion.angular_velocity + quarter * motion.angular_acceleration,
             angular_rate=motion.angular_velocity + h / 2 * motion.angular_acceleration,
@@ -333,21 +318,23 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
             point_mass=mass.point_mass,
             joint_rotation=motion.joint_rotation, joint_rate=motion.joint_rate,
             joint_damping=beta_k, mass_damping=damping.mass_proportional)
-        objective = partial(_step_objective, structure=structure)
         solved = solve_equilibrium(objective, state, (params_t, geometry, data), solver,
-                                   multipliers)
+                                   multipliers, hessian=hessian, constraint_factors=factors)
         there = maximal_coordinates(structure, geometry, solved.state)
         acceleration = 4.0 / h**2 * (there.centroid - data.centroid_predicted)
         psi = rotation_vector(matmul3(transpose3(here.frame), there.frame))
         angular_acceleration = 4.0 / h**2 * (psi - data.increment_predicted)
         point_acceleration = 4.0 / h**2 * (there.point - data.point_predicted)
         joints = _joint_rotation(structure, geometry, solved.state)
-        velocity, angular_velocity, point_velocity = admissible_velocities(
+        # Newmark's velocities, projected on those the constrained structure can have.
+        target = (motion.velocity + h / 2 * (motion.acceleration + acceleration),
+                  motion.angular_velocity + h / 2 * (motion.angular_acceleration
+                                                     + angular_acceleration),
+                  motion.point_velocity + h / 2 * (motion.point_acceleration
+                                                   + point_acceleration))
+        (velocity, angular_velocity, point_velocity), _ = constrained_rates(
             structure, params_t, geometry, solved.state, mass,
-            motion.velocity + h / 2 * (motion.acceleration + acceleration),
-            motion.angular_velocity + h / 2 * (motion.angular_acceleration
-                                               + angular_acceleration),
-            motion.point_velocity + h / 2 * (motion.point_acceleration + point_acceleration))
+            translational_mass(mass, there.frame), target, solver=solver)
         new = _Motion(
             velocity=velocity,
             acceleration=acceleration,
@@ -357,13 +344,12 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
             point_acceleration=point_acceleration,
             joint_rotation=joints,
             joint_rate=2.0 / h * (joints - motion.joint_rotation) - motion.joint_rate)
-        terms, _ = energy_terms_and_constraints(structure, geometry, solved.state, params_t,
-                                                None)
-        lengths = _line_lengths(structure, solved.state)
-        record = dict(time=time, state=solved.state,
-                      node_position=node_positions(structure, geometry, solved.state),
+        own = structure_state(solved.state)
+        terms, _ = energy_terms_and_constraints(structure, geometry, own, params_t, None)
+        record = dict(time=time, state=own,
+                      node_position=node_positions(structure, geometry, own),
                       kinetic_energy=_kinetic_energy(mass, there.frame, new),
-                      potential_energy=jnp.sum(terms), line_length=lengths,
+                      potential_energy=jnp.sum(terms), line_length=_line_lengths(structure, own),
                       converged=solved.converged, iterations=solved.iterations,
                       result=solved.result, residual=solved.residual)
         return (solved.state, solved.multipliers, new), record
