@@ -147,3 +147,75 @@ def test_a_line_going_slack_does_not_break_the_step():
     falling = time < np.sqrt(2 * 0.04 / GRAVITY)
     np.testing.assert_allclose(history.node_position[falling, 1, 2],
                                -0.95 - 0.5 * GRAVITY * time[falling] ** 2, atol=1e-9)
+
+
+def test_step_hessian_blocks_and_factors_equal_autodiff():
+    """The Hessian blocks each implicit step adds to the static Lagrangian's
+    (``jaxtube._dynamics.step_system``: the centroid ties' curvature, inertia, joint damping;
+    the static blocks are checked in tests/test_solver.py) equal the autodiff Hessian of the
+    incremental potential plus multipliers times ties, and the step's factored constraint
+    Jacobian ``C_z + C_w G^{-1} F`` equals the autodiff Jacobian of the constraints and ties,
+    at a state with large rotations."""
+    from jax.flatten_util import ravel_pytree
+
+    from jaxtube._dynamics.integrator import _inertial_potential, _StepData
+    from jaxtube._dynamics.step_system import (
+        centroid_ties,
+        constraints_and_energy,
+        extended_state,
+        inertial_hessian_blocks,
+        step_factors,
+    )
+    from jaxtube._elements import dense_from_blocks
+    from jaxtube._equilibrium import tube_reference_geometry
+
+    structure, params = jt.cantilever(1.0, 0.075, 3e4, 3, jt.LinearLaw(300.0),
+                                      jt.LinearLaw(200.0), mass_per_length=0.3)
+    geometry = tube_reference_geometry(structure, params)
+    rng = np.random.default_rng(3)
+
+    def rand(*shape):
+        return jnp.asarray(rng.standard_normal(shape))
+
+    state = extended_state(structure, geometry, jt.initial_state(structure, params))
+    z0, unravel = ravel_pytree(state)
+    z = z0 + 0.4 * rand(z0.size)
+    state = unravel(z)
+    s, j = structure.segment_count, len(structure.spring_joint_topology().node)
+    frame = jnp.linalg.qr(rand(s, 3, 3))[0]  # orthonormal
+    data = _StepData(step=jnp.asarray(1e-3), centroid_predicted=rand(s, 3),
+                     centroid_rate=rand(s, 3),
+                     translational_mass=jnp.einsum("sij,skj->sik", frame, frame),
+                     frame=frame, increment_predicted=0.1 * rand(s, 3),
+                     angular_rate=rand(s, 3), inertia=jnp.abs(rand(s, 3)),
+                     point_predicted=jnp.zeros((0, 3)), point_rate=jnp.zeros((0, 3)),
+                     point_mass=jnp.zeros((0,)), joint_rotation=0.1 * rand(j, 3),
+                     joint_rate=rand(j, 3), joint_damping=jnp.abs(rand(j, 3)),
+                     mass_damping=jnp.asarray(3.0))
+    lam = rand(3 * s)
+
+    def dynamic_part(flat):
+        moved = unravel(flat)
+        return (_inertial_potential(structure, geometry, moved, data)
+                + lam @ centroid_ties(structure, geometry, moved))
+
+    def autodiff_and_assembled(st):
+        flat = ravel_pytree(st)[0]
+        jacobian = jax.jacfwd(
+            lambda f: constraints_and_energy(structure, geometry, unravel(f), params)[1])(flat)
+        return (jax.hessian(dynamic_part)(flat), jacobian,
+                dense_from_blocks(st, inertial_hessian_blocks(structure, geometry, st, lam,
+                                                              data)),
+                step_factors(structure, geometry, params, st))
+
+    expected, jacobian, assembled, factors = jax.jit(autodiff_and_assembled)(state)
+    np.testing.assert_allclose(assembled, expected, rtol=0,
+                               atol=1e-12 * float(jnp.max(jnp.abs(expected))))
+    n, p = z.size, factors.aux_count
+    tree, cons = np.zeros((p, n + p)), np.zeros((jacobian.shape[0], n + p))
+    for matrix, blocks in ((tree, factors.tree), (cons, factors.constraint)):
+        for rows, cols, values in blocks:
+            np.add.at(matrix, (np.broadcast_to(rows, np.shape(values)),
+                               np.broadcast_to(cols, np.shape(values))), np.asarray(values))
+    factored = cons[:, :n] + cons[:, n:] @ np.linalg.solve(tree[:, n:], -tree[:, :n])
+    np.testing.assert_allclose(factored, jacobian, rtol=0, atol=1e-12)

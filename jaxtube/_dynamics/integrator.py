@@ -240,7 +240,7 @@ def _rest_acceleration(structure, params, geometry, state, mass, frame, solver) 
                                                                  params)[0]))(state)
     s, p = structure.segment_count, structure.elements.unknown_count
     zeros = jnp.zeros((s, 3))
-    (acceleration, angular, point), _ = constrained_rates(
+    acceleration, angular, point = constrained_rates(
         structure, params, geometry, state, mass, translational_mass(mass, frame),
         (zeros, zeros, jnp.zeros((p, 3))), force=gradient, solver=solver)
     joints = _joint_rotation(structure, geometry, state)
@@ -332,7 +332,7 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
                                                      + angular_acceleration),
                   motion.point_velocity + h / 2 * (motion.point_acceleration
                                                    + point_acceleration))
-        (velocity, angular_velocity, point_velocity), _ = constrained_rates(
+        velocity, angular_velocity, point_velocity = constrained_rates(
             structure, params_t, geometry, solved.state, mass,
             translational_mass(mass, there.frame), target, solver=solver)
         new = _Motion(

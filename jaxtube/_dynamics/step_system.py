@@ -26,8 +26,6 @@ consistent acceleration at rest.
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,7 +39,10 @@ from .._mechanics.hessian import lagrangian_hessian_blocks
 from .._mechanics.kinematics import positions_from_steps, relative_joint_rotation, segment_steps
 from .._rotation import right_jacobian, rotation_matrix, rotation_vector, transpose3
 from .._solver.kkt_augmented import ConstraintFactors
-from .._solver.newton_kkt import NewtonKKT, solve_equilibrium
+
+# The step's own KKT system, solved once (a quadratic problem needs no Newton loop): the
+# route and matrix of the solver's implicit tangent.
+from .._solver.newton_kkt import NewtonKKT, _kkt_at_solution, _kkt_route
 from .._structure.structure import GROUND, Structure
 
 #: The extended state's key of the segment centroids ``[S, 3]`` [m].
@@ -62,7 +63,7 @@ def structure_state(state: dict) -> dict:
     return {key: value for key, value in state.items() if key != CENTROID}
 
 
-def _centroid_ties(structure: Structure, geometry, state: dict) -> Array:
+def centroid_ties(structure: Structure, geometry, state: dict) -> Array:
     """``u_s - (start_s + end_s) / 2`` ``[3 S]`` [m]."""
     if not structure.segment_count:
         return jnp.zeros((0,))
@@ -75,7 +76,7 @@ def constraints_and_energy(structure: Structure, geometry, state: dict, params):
     """The structure's energy terms ``[k]`` [J] and its constraints followed by the centroid
     ties ``[m + 3 S]``, at an extended state."""
     terms, c = energy_terms_and_constraints(structure, geometry, state, params, None)
-    return terms, jnp.concatenate([c, _centroid_ties(structure, geometry, state)])
+    return terms, jnp.concatenate([c, centroid_ties(structure, geometry, state)])
 
 
 def step_factors(structure: Structure, geometry, params, state: dict) -> ConstraintFactors:
@@ -150,18 +151,25 @@ def step_hessian_blocks(structure: Structure, geometry, params, state: dict, mul
                         data) -> list:
     """The exact Hessian of the step's Lagrangian (incremental potential plus multipliers
     times constraints and ties) over the extended state, as blocks ``(rows, cols, values)``:
-    the static Lagrangian's (:func:`jaxtube._mechanics.hessian.lagrangian_hessian_blocks`),
-    the ties' curvature, the inertia (3 x 3 per segment on ``u``, 3 x 3 per segment on
-    ``phi``, 3 x 3 per point) and the joints' damping (6 x 6 per joint). ``data``: the
-    step's ``_StepData`` (:mod:`.integrator`)."""
-    count = structure.segment_count
-    structural = multipliers[: multipliers.shape[0] - 3 * count]
-    blocks = lagrangian_hessian_blocks(structure, geometry, params, None, state, structural)
+    the static Lagrangian's (:func:`jaxtube._mechanics.hessian.lagrangian_hessian_blocks`)
+    and :func:`inertial_hessian_blocks`. ``data``: the step's ``_StepData``
+    (:mod:`.integrator`)."""
+    structural = multipliers[: multipliers.shape[0] - 3 * structure.segment_count]
+    return (lagrangian_hessian_blocks(structure, geometry, params, None, state, structural)
+            + inertial_hessian_blocks(structure, geometry, state,
+                                      multipliers[structural.shape[0]:], data))
+
+
+def inertial_hessian_blocks(structure: Structure, geometry, state: dict, tie_multipliers,
+                            data) -> list:
+    """The Hessian blocks the dynamics adds to the static Lagrangian's: the centroid ties'
+    curvature (``tie_multipliers [3 S]``), the inertia (3 x 3 per segment on ``u``, 3 x 3 per
+    segment on ``phi``, 3 x 3 per point) and the joints' damping (6 x 6 per joint)."""
     index = state_index(state)
     weight = 2.0 / data.step**2 + data.mass_damping / data.step
-    if count:
-        blocks.append(_tie_curvature_blocks(structure, geometry, state,
-                                            multipliers[structural.shape[0]:]))
+    blocks = []
+    if structure.segment_count:
+        blocks.append(_tie_curvature_blocks(structure, geometry, state, tie_multipliers))
         centroid = np.asarray(index[CENTROID])
         blocks.append(_block(centroid, centroid, 2.0 * weight * data.translational_mass))
         rotation = np.asarray(index["segment_rotation"])
@@ -235,34 +243,40 @@ def _rates_hessian(rates, multipliers, args, *, structure):
     return blocks
 
 
-def _rates_factors(rates, args, *, structure):
-    state, params, geometry = args[:3]
-    return step_factors(structure, geometry, params, state)
-
-
 def constrained_rates(structure: Structure, params, geometry, state: dict, mass,
-                      translational_mass, target, force=None, multipliers=None,
-                      solver: NewtonKKT = NewtonKKT()):
+                      translational_mass, target, force=None, solver: NewtonKKT = NewtonKKT()):
     """The rates ``zdot`` (extended state) minimising ``|W zdot - v|^2_D / 2 + f . zdot``
     subject to the linearised constraints and ties ``J zdot = 0``: the constrained motion's
     velocities closest, in the kinetic-energy norm, to ``target = (centroid velocity [S, 3],
     body angular velocity [S, 3], point velocity [P, 3])`` (with ``f = 0``), or with ``v =
-    0`` and ``f = grad E`` the consistent acceleration at rest. One Newton-KKT step on the
-    augmented route (a quadratic problem). Returns the rates mapped to maximal coordinates
-    ``(centroid [S, 3], angular [S, 3], point [P, 3])`` and the solver's report."""
-    zero = jax.tree_util.tree_map(jnp.zeros_like, state)
-    flat_force = (jnp.zeros_like(ravel_pytree(state)[0]) if force is None
-                  else ravel_pytree(force)[0])
+    0`` and ``f = grad E`` the consistent acceleration at rest. A quadratic problem: one
+    solve of its KKT system on the route the solver takes for the step (the same blocks and
+    factored constraints, with the floor regularisation of an implicit tangent). Returns the
+    rates mapped to maximal coordinates ``(centroid [S, 3], angular [S, 3], point [P, 3])``."""
+    zero, unravel = ravel_pytree(jax.tree_util.tree_map(jnp.zeros_like, state))
+    flat_force = jnp.zeros_like(zero) if force is None else ravel_pytree(force)[0]
     args = (state, params, geometry, target, flat_force, translational_mass, mass)
-    solved = solve_equilibrium(
-        partial(_rates_objective, structure=structure), zero, args, solver, multipliers,
-        hessian=partial(_rates_hessian, structure=structure),
-        constraint_factors=(partial(_rates_factors, structure=structure)
-                            if structure.segment_count else None))
-    rates = solved.state
+
+    def objective(flat, args):
+        terms, c = _rates_objective(unravel(flat), args, structure=structure)
+        return jnp.reshape(terms, (-1,)), c
+
+    def hessian(flat, multipliers, args):
+        return _rates_hessian(unravel(flat), multipliers, args, structure=structure)
+
+    hessian.constraint_pattern = None
+    hessian.constraint_factors = (
+        (lambda flat, args: step_factors(structure, geometry, params, state))
+        if structure.segment_count else None)
+    m = jax.eval_shape(objective, zero, args)[1].shape[0]
+    multipliers = jnp.zeros((m,))
+    route = _kkt_route(hessian, solver, args, zero, multipliers)
+    kkt = _kkt_at_solution(objective, hessian, route, args, zero, multipliers)
+    gradient = jax.grad(lambda flat: jnp.sum(objective(flat, args)[0]))(zero)
+    rates = unravel(route.solve(kkt, jnp.concatenate([-gradient, multipliers]))[:zero.size])
     if structure.segment_count:
         centroid = rates[CENTROID]
         angular = jnp.einsum("sij,sj->si", rate_map(state), rates["segment_rotation"])
     else:
         centroid = angular = jnp.zeros((0, 3))
-    return (centroid, angular, _points(rates)), solved
+    return centroid, angular, _points(rates)
