@@ -39,7 +39,9 @@ PRESSURE = 2.5e4  # Pa
 WALL_MODULUS = 150e3  # E t [N/m]
 
 
-def build_kite(segments: int, struts: int) -> jt.TubeKite:
+def build_kite(segments: int, struts: int, strut_mass_per_length: float = 0.0) -> jt.TubeKite:
+    """The stand-in kite: ``segments`` on the leading edge, ``segments // 4`` on each strut
+    (weightless unless ``strut_mass_per_length`` [kg/m] is given: the dynamics needs it)."""
     law = jt.TensionFieldLaw(WALL_MODULUS, residual_stiffness_ratio=0.01)
     fractions = (np.arange(struts) + 1.0) / (struts + 1.0)
     return jt.TubeKite(
@@ -47,7 +49,8 @@ def build_kite(segments: int, struts: int) -> jt.TubeKite:
         bending_law=law, torsion_law=jt.LinearLaw(150.0), span=2.6, arc_height=1.0,
         mass_per_length=0.25,
         struts=tuple(jt.Strut(float(f), 0.7, ((0.0, 0.055), (1.0, 0.028)), segments // 4,
-                              pressure=3e4) for f in fractions))
+                              pressure=3e4, mass_per_length=strut_mass_per_length)
+                     for f in fractions))
 
 
 def joint_nodes(structure, params) -> np.ndarray:
