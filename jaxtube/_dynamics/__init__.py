@@ -3,6 +3,8 @@
 - :mod:`.inertia`: the segments' and points' mass and rotational inertia, the kinetic
   energy in maximal coordinates and the mass matrix of the solver's state;
 - :mod:`.modes`: natural modes at an equilibrium (:func:`modes`);
+- :mod:`.integrator`: the time response (:func:`simulate_dynamics`), each step's linear
+  algebra in :mod:`.step_system`; loads and support motions in time in :mod:`.loads`.
 """
 
 from .inertia import MassProperties as MassProperties

@@ -20,14 +20,16 @@ then the stationarity conditions of the incremental potential
 over the solver's state ``z`` under the structure's constraints (``x~ = x_n + h v_n + h^2/4
 a_n``, ``Psi~ = h W_n + h^2/4 A_n``): its gradient is ``grad E + M a_{n+1} + ...``, so each
 step is one call of the static Newton-KKT solver (the same constraints, warm-started from
-the last step; it must converge, and every step's report is kept). ``D`` is the damping's
+the last step; it must converge, and every step's report is kept), on the state extended
+by the segment centroids, with the Hessian assembled block by block and the constraints in
+factored form (:mod:`.step_system`). ``D`` is the damping's
 incremental potential, whose gradient is the damping force at ``t_{n+1}``: mass-proportional
 Rayleigh damping ``c = alpha M`` on every velocity, and stiffness-proportional damping of
 the joints, a viscous moment ``beta k_j d(theta_j)/dt`` with ``k_j`` the joint's initial
 spring stiffness (its law's initial stiffness over its tributary length).
 
 After each step the velocities are projected, in the kinetic-energy norm, on those the
-constrained structure can have (:func:`admissible_velocities`): Newmark's rule on
+constrained structure can have (:func:`.step_system.constrained_rates`): Newmark's rule on
 constrained maximal coordinates leaves their component across the constraints undetermined.
 
 Properties (tested, tests/test_dynamics_time.py): second order in ``h``; undamped, the
