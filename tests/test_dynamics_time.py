@@ -191,7 +191,7 @@ def test_step_hessian_blocks_and_factors_equal_autodiff():
                      point_predicted=jnp.zeros((0, 3)), point_rate=jnp.zeros((0, 3)),
                      point_mass=jnp.zeros((0,)), joint_rotation=0.1 * rand(j, 3),
                      joint_rate=rand(j, 3), joint_damping=jnp.abs(rand(j, 3)),
-                     mass_damping=jnp.asarray(3.0), joints_damped=True)
+                     mass_damping=jnp.asarray(3.0))
     lam = rand(3 * s)
 
     def dynamic_part(flat):

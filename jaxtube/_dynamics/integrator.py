@@ -146,9 +146,6 @@ class _StepData(eqx.Module):
     joint_rate: Array  # thetadot_n [J, 3]
     joint_damping: Array  # beta k_j [J, 3]
     mass_damping: Array  # alpha
-    # False when the joints are undamped (a concrete zero): the term and its blocks are left
-    # out of the program.
-    joints_damped: bool = eqx.field(static=True, default=True)
 
 
 def joint_stiffness(structure: Structure, params: StructureParameters, geometry) -> Array:
@@ -199,7 +196,6 @@ def _inertial_potential(structure, geometry, state, data: _StepData) -> Array:
             rotational_potential, in_axes=(0, 0, 0, 0, 0, 0, None, None))(
             state["segment_rotation"], geometry.frame, data.frame, data.increment_predicted,
             data.angular_rate, data.inertia, weight, data.mass_damping))
-    if structure.segment_count and data.joints_damped:
         topology = structure.spring_joint_topology()
         parent = np.asarray(topology.parent_segment)
         phi = state["segment_rotation"]
@@ -278,21 +274,12 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
     """
     # The step is an array, so that a new step size does not compile a new program.
     return _simulate(structure, params, jnp.asarray(time_step, dtype=float), steps, initial,
-                     loads, support_motions, damping, solver,
-                     not _is_zero(damping.stiffness_proportional))
-
-
-def _is_zero(value) -> bool:
-    """Whether ``value`` is a concrete zero (a traced value is not)."""
-    try:
-        return bool(np.all(np.asarray(value) == 0.0))
-    except jax.errors.TracerArrayConversionError:
-        return False
+                     loads, support_motions, damping, solver)
 
 
 @eqx.filter_jit
 def _simulate(structure, params, time_step, steps, initial, loads, support_motions, damping,
-              solver, joints_damped) -> History:
+              solver) -> History:
     geometry = tube_reference_geometry(structure, params)
     h = jnp.asarray(time_step, dtype=float)
     state = initial_state(structure, params) if initial is None else initial.state
@@ -332,8 +319,7 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
             point_rate=motion.point_velocity + h / 2 * motion.point_acceleration,
             point_mass=mass.point_mass,
             joint_rotation=motion.joint_rotation, joint_rate=motion.joint_rate,
-            joint_damping=beta_k, mass_damping=damping.mass_proportional,
-            joints_damped=joints_damped)
+            joint_damping=beta_k, mass_damping=damping.mass_proportional)
         solved = solve_equilibrium(objective, state, (params_t, geometry, data), solver,
                                    multipliers, hessian=hessian, constraint_factors=factors)
         there = maximal_coordinates(structure, geometry, solved.state)

@@ -178,8 +178,7 @@ def inertial_hessian_blocks(structure: Structure, geometry, state: dict, tie_mul
             state["segment_rotation"], geometry.frame, data.frame, data.increment_predicted,
             data.angular_rate, data.inertia, weight, data.mass_damping)
         blocks.append(_block(rotation, rotation, rotational))
-        if data.joints_damped:
-            blocks.append(_joint_damping_blocks(structure, geometry, state, data, rotation))
+        blocks.append(_joint_damping_blocks(structure, geometry, state, data, rotation))
     if structure.elements.active:
         points = np.asarray(index["point_position"])
         point_blocks = (2.0 * weight * data.point_mass)[:, None, None] * jnp.eye(3)
