@@ -8,11 +8,13 @@ its material frame (third axis along the tube):
 
     m       = (mu_m + mu_a) L                       translation, every direction
     m_x     = mu_x L                                translation across the axis only
-    J_axial = mu_m L r^2                            thin-walled ring; the air does not spin
+    J_axial = (mu_m + mu_s) L r^2                   thin-walled ring; the air does not spin
     J_trans = mu_m L (r^2/2 + L^2/12) + mu_a L (r^2/4 + L^2/12) + mu_x L^3/12
 
 (the ``r^2`` terms are the section's rotary inertia, the ``L^2/12`` terms the segment's
-length; Gere & Goodno, *Mechanics of Materials*, appendix E). Point masses sit on point
+length; Gere & Goodno, *Mechanics of Materials*, appendix E); ``mu_s`` is the spin-only
+mass per length (:attr:`InertiaParameters.spin_mass_per_length`) of a tube whose mass is
+lumped on its nodes. Point masses sit on point
 unknowns; a line's mass is lumped half to each end.
 
 The kinetic energy is that of the *maximal coordinates* (segment centroids, segment frames,
@@ -82,7 +84,8 @@ def mass_properties(structure: Structure, params: StructureParameters,
         slender = length**2 / 12.0
         transverse = (membrane * (radius**2 / 2 + slender) + air * (radius**2 / 4 + slender)
                       + added * slender) * length
-        axial = membrane * radius**2 * length
+        spin = jnp.broadcast_to(inertia.spin_mass_per_length, (tubes,))[tube]
+        axial = (membrane + spin) * radius**2 * length
         segment_mass = (membrane + air) * length
         segment_added = added * length
         segment_inertia = jnp.stack([transverse, transverse, axial], axis=-1)

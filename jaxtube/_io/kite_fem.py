@@ -15,7 +15,10 @@ path of an ``initial.npz``) into a jaxtube structure and its parameters:
   ``Line``, each pulley a ``Pulley`` with the rope's rest length; compression springs
   (kite_fem's ``default`` kind) are refused, jaxtube has none.
 - **Masses.** Every non-zero nodal mass is a point mass under ``params.gravity`` (kite_fem's
-  lumped masses include the tubes', so the tubes get no mass per length).
+  lumped masses include the tubes', so the tubes get no mass per length). The masses on a
+  tube's nodes carry its weight and its translational and bending inertia; its spin about
+  its own axis gets ``params.inertia.spin_mass_per_length``, per tube the mass on its nodes
+  over its length (a node shared by two tubes counts for the first), which adds no mass.
 - **Held nodes.** Nodes that belong to no element (kite_fem keeps a few: in the V3 model 0,
   72, 81, 106, 115, 127, 128, 129) take no part in the solve; they stay where they are and are
   reported there.
@@ -103,6 +106,19 @@ class KiteFemImport:
         mapped = self.node_index >= 0
         out[..., mapped, :] = node_position[..., self.node_index[mapped], :]
         return out
+
+
+def tube_spin_mass(chains, tube_ref: dict, model: KiteFemModel, held) -> np.ndarray:
+    """Per tube ``[T]`` [kg/m]: the point masses on its nodes (a node shared by two tubes
+    counts for the first, as ``tube_ref`` says) over its length; the spin-only mass per
+    length of :class:`jaxtube.InertiaParameters`."""
+    position = model.node_position
+    spin = []
+    for chain in chains:
+        nodes = [n for n in chain.nodes if n not in held and tube_ref[n][0] == chain.name]
+        length = np.linalg.norm(np.diff(position[list(chain.nodes)], axis=0), axis=1).sum()
+        spin.append(float(np.sum(model.node_mass[nodes])) / length)
+    return np.asarray(spin)
 
 
 def import_kite_fem(
@@ -232,6 +248,9 @@ def import_kite_fem(
     structure, params = build_structure(
         tubes, supports, connections, node_force=node_force or None, gravity=gravity,
         points=points, lines=lines, pulleys=pulleys, point_masses=masses, **extra)
+
+    params = eqx.tree_at(lambda p: p.inertia.spin_mass_per_length, params,
+                         jnp.asarray(tube_spin_mass(chains, tube_ref, model, held)))
 
     node_index = np.full(n_nodes, -1, dtype=np.int64)
     for node in range(n_nodes):

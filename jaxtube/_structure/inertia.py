@@ -40,8 +40,16 @@ class InertiaParameters(eqx.Module):
             Newman 1977, *Marine Hydrodynamics*, section 4.13). Default 0.
         line_mass: mass of each line [kg], scalar or ``[L]``, lumped half to each end.
             Default 0.
+        spin_mass_per_length: mass per unit length [kg/m], scalar or ``[T]``, that turns
+            with a tube about its own axis and does nothing else: it adds ``mu_s r^2`` per
+            unit length to a segment's axial (spin) inertia only, no weight and no
+            translational or bending inertia. For a model whose tubes' mass sits on their
+            nodes as point masses (the kite_fem import): those carry the tube's weight and
+            its translational and bending inertia, but masses on the axis cannot carry its
+            spin. Default 0.
     """
 
     enclosed_air_density: Array = eqx.field(default_factory=lambda: jnp.zeros(()))
     added_mass_density: Array = eqx.field(default_factory=lambda: jnp.zeros(()))
     line_mass: Array = eqx.field(default_factory=lambda: jnp.zeros(()))
+    spin_mass_per_length: Array = eqx.field(default_factory=lambda: jnp.zeros(()))
