@@ -12,11 +12,13 @@ At an equilibrium ``(z*, lambda*)`` of the solver's state the small motions obey
 
 With ``Z`` a basis of the null space of ``J`` the reduced problem
 ``Z^T K Z y = omega^2 Z^T M Z y`` is solved by a Cholesky factor ``L`` of ``Z^T M Z`` and
-the symmetric eigenproblem of ``L^{-1} Z^T K Z L^{-T}`` (``jnp.linalg.eigh``). ``Z`` is the
-projection ``(I - J^T (J J^T)^{-1} J) Z0`` of a fixed basis ``Z0`` (an SVD of ``J`` with its
-derivative stopped): the projection follows ``J`` differentiably, and the eigenvalues depend
-only on the span, so frequencies are differentiable in every parameter (for distinct
-eigenvalues) through the equilibrium's own implicit derivative. The constraints must be
+the symmetric eigenproblem of ``L^{-1} Z^T K Z L^{-T}`` (``jnp.linalg.eigh``). ``Z``
+eliminates ``m`` independent columns of ``J`` (chosen by an LU factorisation of ``J^T``
+with partial pivoting, the choice's derivative stopped): ``Z = P [-J_B^{-1} J_F; I]``
+follows ``J`` differentiably, and the eigenvalues depend only on its span, so frequencies
+are differentiable in every parameter (for distinct eigenvalues) through the equilibrium's
+own implicit derivative. (An orthonormal basis from an SVD of ``J`` gave the same span at
+20 times the cost on the V3 kite: 10 s of a 12 s analysis.) The constraints must be
 independent (full row rank ``J``); every free unknown must carry mass.
 
 Modes whose ``omega^2`` is below ``zero_tolerance`` times the largest are *zero-frequency*
@@ -78,14 +80,17 @@ def node_positions(structure: Structure, geometry, state: dict) -> Array:
 
 def null_space(jacobian: Array) -> Array:
     """A basis ``[n, n - m]`` of the null space of a full-row-rank ``jacobian`` ``[m, n]``,
-    differentiable in it (module docstring)."""
+    differentiable in it (module docstring): ``m`` independent columns ``B`` of ``J`` (the
+    pivots of an LU factorisation of ``J^T`` with partial pivoting, derivative stopped) are
+    eliminated, ``Z[B] = -J_B^{-1} J_F``, ``Z[F] = I`` (``F`` the other columns)."""
     m, n = jacobian.shape
     if m == 0:
         return jnp.eye(n)
-    _, _, vt = jnp.linalg.svd(jax.lax.stop_gradient(jacobian))
-    fixed = vt[m:].T
-    gram = jacobian @ jacobian.T
-    return fixed - jacobian.T @ jnp.linalg.solve(gram, jacobian @ fixed)
+    _, _, order = jax.lax.linalg.lu(jax.lax.stop_gradient(jacobian.T))
+    basic, free = order[:m], order[m:]
+    eliminated = -jnp.linalg.solve(jacobian[:, basic], jacobian[:, free])
+    return (jnp.zeros((n, n - m), jacobian.dtype).at[basic].set(eliminated)
+            .at[free].set(jnp.eye(n - m, dtype=jacobian.dtype)))
 
 
 def stiffness_and_mass(structure: Structure, params: StructureParameters, state: dict,
