@@ -9,7 +9,9 @@ current model with each candidate effect (:class:`fitting.ShapeEffect`) freed, t
 are fitted to all cases but one and the left-out case is scored (smooth RMS,
 :func:`fitting.smooth_shape_score`); a candidate's *held-out gain* is the fall of the mean
 over left-out cases of the squared RMS [mm²]. Every fit starts from the current model's
-values (the last optimum), the candidate's at the null 1.
+values (the last optimum), the candidate's at its null (1 for a factor, 0 for a mass or an
+offset, clipped into its plausible range), and every solve from the case's last
+equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
 
 **Statistics** (as the curve diagnosis, :mod:`fitting._diagnose.ranking`, where they apply):
 each candidate is also fitted to every case; with ``RSS`` the tube markers' smooth distances'
@@ -39,7 +41,7 @@ from scipy.stats import chi2
 from .._json import finite_or_none
 from .._shape.markers import load_markers
 from .._shape.smooth import smooth_shape_score
-from .calibrate import CampaignCalibration, calibrate_campaign
+from .calibrate import CampaignCalibration, calibrate_campaign, on_bound
 from .file import Campaign
 from .kite import campaign_tube_surfaces
 from .model import KiteModel
@@ -230,7 +232,7 @@ def _rank(effect, current, current_square, names, bounds, cases, fit, held_out, 
         reasons.append(f"the BIC falls by {bic_fall:.1f} <= {BIC_THRESHOLD}")
     for name, (low, high) in effect.bounds.items():
         value = float(full.values[full.names.index(name)])
-        if min(abs(math.log(value / low)), abs(math.log(value / high))) < 1e-3:
+        if on_bound(name, value, (low, high)):
             reasons.append(f"{name} = {value:.4g} on an edge of its plausible range "
                            f"{low}-{high}")
     if not full.converged:
