@@ -84,6 +84,11 @@ class CampaignCalibration:
         residual_sum_squares_m2: the tube markers' smooth distances' sum of squares [m²]
             over every case at the end; residual_count: how many; degrees_of_freedom: that
             count less the values and six registration numbers per case.
+        least_squares: at the end, ``(jacobian [M, k + 6 C], residual [M] [m], {case: (first
+            row, last row + 1)})``: the tube markers' smooth distances of every case and
+            their Jacobian in the values' search coordinates and each case's registration
+            (module docstring; :func:`fitting.diagnose_campaign` scores left-out cases from
+            it).
     """
 
     model: KiteModel
@@ -100,6 +105,7 @@ class CampaignCalibration:
     residual_sum_squares_m2: float
     residual_count: int
     degrees_of_freedom: int
+    least_squares: tuple = dataclasses.field(default=(), repr=False, compare=False)
 
     def to_json(self) -> dict:
         """The model file's content (``model``) with the estimates and what was said."""
@@ -165,8 +171,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     damping, converged, message = 1e-3, False, f"stopped after {max_steps} steps"
     for _ in range(max_steps):
         theta, total, _, states = current
-        jacobian, residual = _least_squares_system(campaign, markers, states, len(names),
-                                                   per_case_weight=True)
+        jacobian, residual, _ = _least_squares_system(campaign, markers, states, len(names),
+                                                      per_case_weight=True)
         normal = jacobian.T @ jacobian
         gradient = jacobian.T @ residual
         trial = None
@@ -192,7 +198,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
             break
     theta, _, per_case, states = current
     values = values_from_search(names, theta)
-    search_errors, correlation, residuals = _search_standard_errors(campaign, markers, states,
+    jacobian, residual, rows = _least_squares_system(campaign, markers, states, len(names))
+    search_errors, correlation, residuals = _search_standard_errors(jacobian, residual,
                                                                     len(names))
     errors = np.asarray([e if is_offset(n) else v * e
                          for n, v, e in zip(names, values, search_errors)])
@@ -215,15 +222,16 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     return CampaignCalibration(with_values(model, names, values), names, values,
                                errors, correlation, tuple(statements),
                                evaluations[0][2], per_case, converged, message,
-                               len(evaluations), *residuals)
+                               len(evaluations), *residuals, (jacobian, residual, rows))
 
 
 def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
-    """``(jacobian [M, k + 6 C], residual [M])`` of the tube markers' smooth distances [m]
-    of every case: columns for the ``k`` values' search coordinates (distances' position
-    gradient times the equilibrium's tangents), then six per case for its registration
-    (rotation vector, translation). ``per_case_weight``: each case's rows divided by
-    ``sqrt(m_c C)`` (then the sum of squares is the mean over cases of the squared RMS)."""
+    """``(jacobian [M, k + 6 C], residual [M], {case: (first row, last row + 1)})`` of the
+    tube markers' smooth distances [m] of every case: columns for the ``k`` values' search
+    coordinates (distances' position gradient times the equilibrium's tangents), then six
+    per case for its registration (rotation vector, translation). ``per_case_weight``: each
+    case's rows divided by ``sqrt(m_c C)`` (then the sum of squares is the mean over cases
+    of the squared RMS)."""
     blocks, residuals = [], []
     for case, (positions, tangents, score) in states.items():
         surfaces = continuous_radius(campaign_tube_surfaces(campaign, positions))
@@ -251,21 +259,22 @@ def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
                                                  np.asarray(by_translation)], 1)))
     count = sum(len(r) for r in residuals)
     jacobian = np.zeros((count, k + 6 * len(blocks)))
-    row = 0
-    for c, (by_value, by_registration) in enumerate(blocks):
+    row, rows = 0, {}
+    for c, (case, (by_value, by_registration)) in enumerate(zip(states, blocks)):
+        rows[case] = (row, row + len(by_value))
         weight = 1.0 / np.sqrt(len(by_value) * len(blocks)) if per_case_weight else 1.0
         jacobian[row:row + len(by_value), :k] = weight * by_value
         jacobian[row:row + len(by_value), k + 6 * c:k + 6 * c + 6] = weight * by_registration
         residuals[c] = weight * residuals[c]
         row += len(by_value)
-    return jacobian, np.concatenate(residuals)
+    return jacobian, np.concatenate(residuals), rows
 
 
-def _search_standard_errors(campaign, markers, states, k):
-    """Standard errors of the values in search coordinates, their correlation (Gauss-Newton over the
-    markers' smooth distances, each case's registration a nuisance parameter) and
-    ``(sum of squares [m²], residual count, degrees of freedom)``."""
-    jacobian, residual = _least_squares_system(campaign, markers, states, k)
+def _search_standard_errors(jacobian, residual, k):
+    """Standard errors of the values in search coordinates, their correlation (Gauss-Newton
+    over the markers' smooth distances ``residual`` with ``jacobian``: each case's
+    registration a nuisance parameter) and ``(sum of squares [m²], residual count, degrees
+    of freedom)``."""
     count, columns = jacobian.shape
     squares = float(residual @ residual)
     residuals = (squares, count, count - columns)

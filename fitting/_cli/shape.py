@@ -19,10 +19,11 @@ determine), ``cases.csv`` and ``rms_before_after.png`` (each case's smooth RMS b
 after).
 
 ``jaxtube shape diagnose CAMPAIGN.toml [--effect NAME|FILE.py:NAME ...] [--model model.json]
-[--cases A B ...] --out DIR``: which candidate effect the model misses
-(:mod:`fitting._campaign.diagnose`): the baseline (``[diagnose] baseline``) fitted to the
-calibration cases, the candidates (``[diagnose] candidates``, default every built-in effect,
-plus ``--effect``) ranked by what they gain on cases left out of the fit, the best added
+[--cases A B ...] [--held-out linearised|refit] --out DIR``: which candidate effect the model
+misses (:mod:`fitting._campaign.diagnose`): the baseline (``[diagnose] baseline``) fitted to
+the calibration cases, the candidates (``[diagnose] candidates``, default every built-in
+effect, plus ``--effect``) ranked by what they gain on cases left out of the fit (by one
+linearised step from the fit to every case, or by refitting), the best added
 until none passes: ``report.txt``, ``diagnosis.json``, ``model.json`` (the model it ends
 with), ``cases.csv``, ``rms_before_after.png`` (baseline and final) and ``ranking.png``.
 Exit 1 when the final model did not converge.
@@ -46,7 +47,7 @@ from tqdm import tqdm
 import jaxtube as jt
 
 from .._campaign.calibrate import calibrate_campaign
-from .._campaign.diagnose import diagnose_campaign
+from .._campaign.diagnose import HELD_OUT, diagnose_campaign
 from .._campaign.diagnosis_report import diagnosis_report, ranking_figure
 from .._campaign.effects import resolve_shape_effect, shape_effects
 from .._campaign.file import read_campaign
@@ -98,6 +99,10 @@ def add_shape(subparsers) -> None:
                                  metavar="NAME|FILE.py:NAME",
                                  help="another candidate: a built-in effect or a user's "
                                       "ShapeEffect (docs/shapes.md)")
+            command.add_argument("--held-out", choices=HELD_OUT, default=HELD_OUT[0],
+                                 help="how a case left out of the fit is scored: one "
+                                      "linearised step from the fit to every case (default) "
+                                      "or a fit to the other cases and a solve")
         if name == "compare":
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
@@ -258,7 +263,7 @@ def run_diagnose(args, campaign, model, names) -> int:
     with tqdm(desc="shape diagnose fits", unit="fit", file=sys.stderr) as bar:
         found = diagnose_campaign(campaign, model, baseline, candidates, names, solver,
                                   log=lambda text: bar.write(text, file=sys.stderr),
-                                  bar=bar)
+                                  bar=bar, held_out=args.held_out)
     seconds = time.perf_counter() - started
     document = found.to_json() | {"seconds": seconds, "cases": names}
     before, after = found.baseline.rms_mm_after, found.final.rms_mm_after
