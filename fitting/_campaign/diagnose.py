@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 from scipy.stats import chi2
@@ -154,8 +155,12 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
     quiet = lambda text: None  # noqa: E731
 
     def fit(start, names, on, bounds):
+        started = time.perf_counter()
         found = calibrate_campaign(campaign, start, names, on, solver, bounds=bounds,
                                    max_steps=FIT_STEPS, log=quiet)
+        log(f"  fit of {', '.join(names)} to {len(on)} cases: {found.evaluations} "
+            f"evaluations, {time.perf_counter() - started:.1f} s, mean square RMS "
+            f"{np.mean(np.square(list(found.rms_mm_after.values()))):.1f} mm^2")
         if bar is not None:
             bar.update(1)
         return found

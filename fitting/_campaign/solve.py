@@ -202,7 +202,11 @@ class CaseSolver:
             x = solution.node_position[-1]
             return x, (x, solution.converged[-1], iterations, jt.restart_from(solution))
 
-        program, _ = _compiled(("tangents", names) + key,
+        # The program closes over the model's other values and the campaign's named sets:
+        # they are part of its key (a program is never reused with other constants).
+        constants = repr((with_values(model, names, [0.0] * len(names)), campaign.line_sets,
+                          campaign.tube_classes, campaign.points, campaign.gravity.tolist()))
+        program, _ = _compiled(("tangents", names, constants) + key,
                                jax.jacfwd(positions, has_aux=True), theta, *arguments)
         started = time.perf_counter()
         jacobian, (x, converged, iterations, reached) = jax.block_until_ready(

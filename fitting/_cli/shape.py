@@ -42,6 +42,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 import jaxtube as jt
@@ -60,7 +61,7 @@ from .._campaign.report import (
     rms_before_after_figure,
 )
 from .._campaign.solve import CaseSolver
-from .._json import write_json
+from .._json import finite_or_none, write_json
 from .._shape.files import ShapeFileError
 from .._shape.markers import load_markers
 from .common import bad_output_directory, write_directory
@@ -246,6 +247,22 @@ def _diagnosis_inputs(args, campaign):
     return campaign.diagnose_baseline, candidates
 
 
+def solve_statistics(record) -> dict:
+    """``{"warm" | "from_undeformed": {"solves", "newton_iterations_median",
+    "seconds_median", "seconds_total"}}`` of a :class:`fitting.CaseSolver`'s record."""
+    statistics = {}
+    for key, warm in (("warm", True), ("from_undeformed", False)):
+        solves = [r for r in record if r["warm"] == warm]
+        statistics[key] = {
+            "solves": len(solves),
+            "newton_iterations_median": finite_or_none(np.median(
+                [r["newton_iterations"] for r in solves]) if solves else float("nan")),
+            "seconds_median": finite_or_none(np.median([r["seconds"] for r in solves])
+                                             if solves else float("nan")),
+            "seconds_total": float(sum(r["seconds"] for r in solves))}
+    return statistics
+
+
 def run_diagnose(args, campaign, model, names) -> int:
     """Run ``shape diagnose``; returns the exit code."""
     inputs = _diagnosis_inputs(args, campaign)
@@ -265,7 +282,8 @@ def run_diagnose(args, campaign, model, names) -> int:
                                   log=lambda text: bar.write(text, file=sys.stderr),
                                   bar=bar, held_out=args.held_out)
     seconds = time.perf_counter() - started
-    document = found.to_json() | {"seconds": seconds, "cases": names}
+    document = found.to_json() | {"seconds": seconds, "cases": names,
+                                  "solves": solve_statistics(solver.record)}
     before, after = found.baseline.rms_mm_after, found.final.rms_mm_after
     rows = "case,rms_mm_start,rms_mm_baseline,rms_mm_final\n" + "".join(
         f"{c},{found.baseline.rms_mm_before[c]!r},{before[c]!r},{after[c]!r}\n"
