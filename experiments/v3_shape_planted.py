@@ -15,11 +15,14 @@ Gaussian noise (``--noise-mm``, default 2). Plants:
 
 The diagnosis then runs on the planted campaign (the V3 campaign with the planted markers)
 from the plain model with the baseline ``bending_scale`` and the trailing edge's rest
-lengths, every other built-in effect a candidate, the left-out cases scored by the
-linearised step. Writes ``experiments/results/v3_shape_planted/<plant>/`` (the command's
-files, ``campaign.toml`` and the markers) and prints the verdict.
+lengths, the candidates ``--candidates`` (default every other built-in effect), the
+left-out cases scored by the linearised step. The plants run one after the other in one
+process (one compiled program per route). Writes
+``experiments/results/v3_shape_planted/<plant>/`` (``campaign/``: the campaign file and its
+markers; ``diagnosis/``: the command's files) and prints each verdict.
 
-Usage: ``python -m experiments.v3_shape_planted --plant central_struts [--cases P1_S ...]``
+Usage: ``python -m experiments.v3_shape_planted --plants none central_struts
+[--cases P1_S ...] [--candidates bending.struts ...]``
 """
 
 import argparse
@@ -68,7 +71,8 @@ def surface_markers(campaign, case, positions, rng, noise_m):
     return moved, [real.group[k] for k in tube], [real.index[k] for k in tube]
 
 
-def planted_campaign(folder: Path, plant: str, cases, noise_m: float, seed: int) -> Path:
+def planted_campaign(folder: Path, plant: str, cases, candidates, noise_m: float,
+                     seed: int) -> Path:
     """Write the planted campaign (markers and campaign.toml) into ``folder``."""
     campaign = fitting.read_campaign(DATA / "campaign.toml")
     generating = dataclasses.replace(campaign, tube_classes={
@@ -82,7 +86,9 @@ def planted_campaign(folder: Path, plant: str, cases, noise_m: float, seed: int)
         text = text.replace(f'"{relative}"', json.dumps(os.path.relpath(DATA / relative,
                                                                         folder)))
     text = text.replace('baseline = ["bending_scale"]',
-                        'baseline = ["bending_scale", "rest_length_factors.trailing_edge"]')
+                        'baseline = ["bending_scale", "rest_length_factors.trailing_edge"]'
+                        + ("" if candidates is None else
+                           f"\ncandidates = {json.dumps(list(candidates))}"))
     folder.mkdir(parents=True, exist_ok=True)
     for name in cases:
         case = campaign.case(name)
@@ -105,22 +111,25 @@ def planted_campaign(folder: Path, plant: str, cases, noise_m: float, seed: int)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--plant", choices=PLANTS, required=True)
+    parser.add_argument("--plants", nargs="+", choices=PLANTS, required=True)
     parser.add_argument("--cases", nargs="+", default=CASES, choices=CASES)
+    parser.add_argument("--candidates", nargs="+", default=None,
+                        help="candidate effects (default: every built-in effect)")
     parser.add_argument("--noise-mm", type=float, default=2.0)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     jt.enable_compilation_cache()
-    out = ROOT / "results" / "v3_shape_planted" / args.plant
-    path = planted_campaign(out / "campaign", args.plant, args.cases, args.noise_mm / 1e3,
-                            args.seed)
-    command = argparse.ArgumentParser()
-    add_shape(command.add_subparsers())
-    diagnose = command.parse_args(["shape", "diagnose", str(path), "--out",
-                                   str(out / "diagnosis")])
-    code = diagnose.run(diagnose)
-    verdict = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
-    print(f"planted {args.plant}: added {verdict['added']} (exit {code})")
+    for plant in args.plants:
+        out = ROOT / "results" / "v3_shape_planted" / plant
+        path = planted_campaign(out / "campaign", plant, args.cases, args.candidates,
+                                args.noise_mm / 1e3, args.seed)
+        command = argparse.ArgumentParser()
+        add_shape(command.add_subparsers())
+        diagnose = command.parse_args(["shape", "diagnose", str(path), "--out",
+                                       str(out / "diagnosis")])
+        code = diagnose.run(diagnose)
+        verdict = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
+        print(f"planted {plant}: added {verdict['added']} (exit {code})", flush=True)
 
 
 if __name__ == "__main__":
