@@ -66,7 +66,7 @@ def surface_markers(campaign, case, positions, rng, noise_m):
     for _ in range(3):  # the nearest surface point, by Newton steps along the normal
         normal = jax.grad(lambda p: jnp.sum(distance(p)))(points)
         points = points - distance(points)[:, None] * normal
-    moved = Rotation.from_rotvec(rng.normal(scale=0.5, size=3)).apply(np.asarray(points))
+    moved = Rotation.from_rotvec(rng.normal(scale=0.5, size=3)).apply(np.array(points))
     moved += rng.normal(size=3) + rng.normal(scale=noise_m, size=moved.shape)
     return moved, [real.group[k] for k in tube], [real.index[k] for k in tube]
 
