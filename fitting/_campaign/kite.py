@@ -4,10 +4,14 @@ for the markers, its line sets and measured lengths.
 The structure is imported once per case (:func:`jaxtube.import_kite_fem`: the case's
 pressure; every case has the same structure and parameter shapes), the case's loads are set
 as dead forces on their nodes, and the model's values (:class:`KiteModel`) are put into the
-parameters: the bending law's factor (``law_form``: :class:`jaxtube.CurvatureScaledLaw` or
-:class:`jaxtube.ScaledLaw` over Breukels' 2011 law) and the rest lengths of each named line
-set times its factor. Values are parameters, not structure: one compiled program serves
-every value (:mod:`fitting._campaign.solve`).
+parameters (:func:`with_model_values`): the bending law's factor (``law_form``:
+:class:`jaxtube.CurvatureScaledLaw` or :class:`jaxtube.ScaledLaw` over Breukels' 2011 law),
+per tube class and for torsion, the pressure's factor and offset, the rest lengths and
+stiffnesses of each named line set times their factors, point masses at named points (dead
+loads) and the suspension points' offsets (the fixed points' positions). Values are
+parameters, not structure: one compiled program serves every value
+(:mod:`fitting._campaign.solve`). Factors are searched by their logarithm, masses and
+offsets as they are (:func:`search_coordinates`).
 """
 
 from __future__ import annotations
