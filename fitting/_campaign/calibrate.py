@@ -225,6 +225,23 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                                len(evaluations), *residuals, (jacobian, residual, rows))
 
 
+@eqx.filter_jit
+def _distances_and_jacobians(surfaces, registration, points, point_groups, positions):
+    """The tube markers' smooth surface distances ``[m]`` [m] at node ``positions`` [N, 3]
+    and their Jacobians with respect to the positions, the registration's rotation vector
+    and its translation (reverse mode: one pass per tube marker, tens, rather than per
+    coordinate, hundreds); compiled once per case's marker count."""
+
+    def distances(x, rotation, translation):
+        moved = eqx.tree_at(lambda r: (r.rotation_vector, r.translation), registration,
+                            (rotation, translation))
+        return tube_surface_distance(surfaces.with_positions(x), moved.apply(points),
+                                     point_groups)[0]
+
+    arguments = (positions, registration.rotation_vector, registration.translation)
+    return distances(*arguments), jax.jacrev(distances, argnums=(0, 1, 2))(*arguments)
+
+
 def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
     """``(jacobian [M, k + 6 C], residual [M], {case: (first row, last row + 1)})`` of the
     tube markers' smooth distances [m] of every case: columns for the ``k`` values' search
@@ -239,21 +256,9 @@ def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
         groups = registration.surface_groups(markers[case], surfaces)
         tube = np.flatnonzero(groups >= 0)
         points = markers[case].position[tube]
-        point_groups = jnp.asarray(groups[tube])
-
-        def distances(x, rotation, translation, registration=registration, points=points,
-                      point_groups=point_groups, surfaces=surfaces):
-            moved = eqx.tree_at(lambda r: (r.rotation_vector, r.translation), registration,
-                                (rotation, translation))
-            return tube_surface_distance(surfaces.with_positions(x), moved.apply(points),
-                                         point_groups)[0]
-
-        arguments = (jnp.asarray(positions), registration.rotation_vector,
-                     registration.translation)
-        # Reverse mode: one pass per tube marker (tens) rather than per coordinate (hundreds).
-        by_position, by_rotation, by_translation = jax.jacrev(distances, argnums=(0, 1, 2))(
-            *arguments)
-        residuals.append(np.asarray(distances(*arguments)))
+        distance, (by_position, by_rotation, by_translation) = _distances_and_jacobians(
+            surfaces, registration, points, jnp.asarray(groups[tube]), jnp.asarray(positions))
+        residuals.append(np.asarray(distance))
         by_value = np.einsum("mnd,ndk->mk", np.asarray(by_position), tangents)
         blocks.append((by_value, np.concatenate([np.asarray(by_rotation),
                                                  np.asarray(by_translation)], 1)))
