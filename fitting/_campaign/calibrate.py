@@ -3,18 +3,19 @@ errors and a statement for every value the cases do not determine.
 
 **Objective.** The mean over the calibration cases of the squared smooth marker RMS
 (:func:`fitting.smooth_shape_score`: the peers' metric with the radius continuous along each
-tube, re-registered at every evaluation), in mm², as a function of the fitted values'
-search coordinates (:func:`fitting.search_coordinates`: the logarithm of a factor such as
-``"bending_scale"`` or ``"rest_length_factors.SET"``; a mass or an offset such as
-``"point_masses_kg.POINT"`` or ``"pressure_offset_bar"`` as it is). Its gradient is each
-case's position gradient at the optimal registration times the equilibrium's tangents
-(:meth:`fitting.CaseSolver.tangents`: implicit function theorem). Search: damped
-Gauss-Newton (Levenberg) on the markers' distances, the registrations' six numbers per case
-in the step and solved again at every trial (variable projection), each step clipped to the
-values' bounds; it stops when a step lowers the root of the objective by less than
-``RMS_TOLERANCE_MM`` or moves the coordinates by less than 1e-5, or when no damping
-lowers it. Every evaluation solves each case from its last equilibrium
-(:class:`fitting.CaseSolver` ``warm_starts``).
+tube, re-registered at every evaluation: the first by the full search of
+:func:`fitting.register`, every later one iterated from the case's last registration), in
+mm², as a function of the fitted values' search coordinates
+(:func:`fitting.search_coordinates`: the logarithm of a factor such as ``"bending_scale"``
+or ``"rest_length_factors.SET"``; a mass or an offset such as ``"point_masses_kg.POINT"`` or
+``"pressure_offset_bar"`` as it is). Its gradient is each case's position gradient at the
+optimal registration times the equilibrium's tangents (:meth:`fitting.CaseSolver.tangents`:
+implicit function theorem). Search: damped Gauss-Newton (Levenberg) on the markers'
+distances, the registrations' six numbers per case in the step and solved again at every
+trial (variable projection), each step clipped to the values' bounds; it stops when a step
+lowers the root of the objective by less than ``RMS_TOLERANCE_MM`` or moves the coordinates
+by less than 1e-5, or when no damping lowers it. Every evaluation solves each case from its
+last equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
 
 **Standard errors** (Gauss-Newton at the optimum): the residuals are the tube markers'
 smooth surface distances of every case; their Jacobian has a column per fitted value
@@ -144,6 +145,7 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     high = search_coordinates(names, [bounds[n][1] for n in names])
     markers = {c: load_markers(campaign.case(c).markers) for c in cases}
     evaluations = []
+    registrations = {}  # each case's last registration: the next one starts from it
 
     def evaluate(theta):
         values = values_from_search(names, theta)
@@ -156,7 +158,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                 return None
             states[case] = (positions, tangents, smooth_shape_score(
                 campaign_tube_surfaces(campaign, positions), markers[case],
-                canopy_group=campaign.canopy_group))
+                canopy_group=campaign.canopy_group, start=registrations.get(case)))
+            registrations[case] = states[case][2].registration.registration
             per_case[case] = states[case][2].rms_mm
         total = float(np.mean(np.square(list(per_case.values()))))
         evaluations.append((theta.copy(), total, per_case, states))

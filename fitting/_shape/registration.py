@@ -260,15 +260,27 @@ def refuse_degenerate_markers(points: np.ndarray, source: str) -> None:
 
 
 def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="auto",
-             canopy_group: str = CANOPY_GROUP, max_iterations: int = 60) -> RegistrationResult:
+             canopy_group: str = CANOPY_GROUP, max_iterations: int = 60,
+             start: Registration | None = None) -> RegistrationResult:
     """Best rigid registration of ``markers`` onto ``surfaces`` (search in the module
     docstring). ``spanwise_groups``: ``"auto"`` (the largest numbered family among the
     marker groups, see :func:`fitting._shape.markers.spanwise_family`), a tuple of group
-    names in spanwise order, or ``()`` to keep the numbering as it is."""
-    if spanwise_groups == "auto":
-        spanwise_groups = spanwise_family(g for g in markers.group_names if g != canopy_group)
-    spanwise_groups = tuple(spanwise_groups)
-    orders = (False, True) if spanwise_groups else (False,)
+    names in spanwise order, or ``()`` to keep the numbering as it is.
+
+    ``start``: a registration of the same markers onto a nearby shape (e.g. the last
+    evaluation of a fit): no search, only the tight phase from it, with its group matching
+    (its spanwise order and groups; ``spanwise_groups`` and ``canopy_group`` are then
+    ignored). It finds the minimum of the basin ``start`` lies in, which is the search's
+    winner while the shape moves little."""
+    if start is not None:
+        spanwise_groups, canopy_group = start.spanwise_groups, start.canopy_group
+        orders = (start.reversed_order,)
+    else:
+        if spanwise_groups == "auto":
+            spanwise_groups = spanwise_family(g for g in markers.group_names
+                                              if g != canopy_group)
+        spanwise_groups = tuple(spanwise_groups)
+        orders = (False, True) if spanwise_groups else (False,)
     groups = np.stack([marker_surface_groups(
         markers, surfaces, spanwise_groups=spanwise_groups, reversed_order=order,
         canopy_group=canopy_group) for order in orders])
@@ -291,29 +303,40 @@ def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="aut
     used = np.isin(np.asarray(surfaces.segment_group), groups[0, tube])
     model_points = np.asarray(surfaces.node_positions)[
         np.asarray(surfaces.segment_nodes)[used].reshape(-1)]
-    rotations = start_rotations(measured, model_points)
-    start = np.asarray(rotations * len(orders))                       # [k, 3, 3]
+    if start is None:
+        rotations = start_rotations(measured, model_points)
+        initial = np.tile(np.concatenate([np.zeros(3), model_points.mean(0)]),
+                          (len(rotations) * len(orders), 1))
+    else:
+        rotations = [np.asarray(rotation_matrix(start.rotation_vector))]
+        initial = np.concatenate([np.zeros(3), np.asarray(start.translation) + (
+            centroid - np.asarray(start.marker_centroid)) @ rotations[0].T])[None]
+    start_rotation = np.asarray(rotations * len(orders))              # [k, 3, 3]
     order = np.repeat(np.arange(len(orders)), len(rotations))         # [k]
-    initial = np.tile(np.concatenate([np.zeros(3), model_points.mean(0)]), (len(start), 1))
-    constants = (jnp.asarray(start), surfaces, jnp.asarray(points),
+    constants = (jnp.asarray(start_rotation), surfaces, jnp.asarray(points),
                  jnp.asarray(padded_groups[order]), jnp.asarray(weights))
-    parameters, cost, _ = _batched_levenberg_marquardt(
-        jnp.asarray(initial), jnp.zeros(len(start), bool), jnp.asarray(max_iterations),
-        jnp.asarray(1e-8), jnp.asarray(10), *constants)
-    rms = np.sqrt(np.asarray(cost) / tube.size)
-    rms_by_order = {orders[j]: float(rms[order == j].min()) for j in range(len(orders))}
+    parameters = jnp.asarray(initial)
+    if start is None:
+        parameters, cost, _ = _batched_levenberg_marquardt(
+            parameters, jnp.zeros(len(start_rotation), bool), jnp.asarray(max_iterations),
+            jnp.asarray(1e-8), jnp.asarray(10), *constants)
+        rms = np.sqrt(np.asarray(cost) / tube.size)
+        rms_by_order = {orders[j]: float(rms[order == j].min()) for j in range(len(orders))}
+        best = int(np.argmin(rms))
+    else:
+        rms_by_order, best = {}, 0
     # The best start is then iterated alone to a tight tolerance (the same compiled loop).
-    best = int(np.argmin(rms))
     parameters, cost, converged = _batched_levenberg_marquardt(
-        parameters, jnp.asarray(np.arange(len(start)) != best), jnp.asarray(200),
+        parameters, jnp.asarray(np.arange(len(start_rotation)) != best), jnp.asarray(200),
         jnp.asarray(1e-14), jnp.asarray(200), *constants)
     parameters, cost, converged = np.asarray(parameters), np.asarray(cost), np.asarray(converged)
-    rotation = np.asarray(rotation_matrix(jnp.asarray(parameters[best, :3]))) @ start[best]
+    rotation = np.asarray(rotation_matrix(jnp.asarray(parameters[best, :3]))) @ \
+        start_rotation[best]
     registration = Registration(jnp.asarray(Rotation.from_matrix(rotation).as_rotvec()),
                                 jnp.asarray(parameters[best, 3:]), jnp.asarray(centroid),
                                 spanwise_groups, orders[order[best]], canopy_group)
     final = float(np.sqrt(cost[best] / tube.size))
     rms_by_order[orders[order[best]]] = final
     message = "converged" if converged[best] else "iteration limit reached"
-    return RegistrationResult(registration, final, rms_by_order, len(start),
+    return RegistrationResult(registration, final, rms_by_order, len(start_rotation),
                               bool(converged[best]), message)
