@@ -116,6 +116,10 @@ def test_line_set_factor_scales_its_lines_alone():
      "model.strut_stiffness", "unknown effect"),
     (("[line_sets]", "[model.rest_length_factors]\nbridle = 0.9\n\n[line_sets]"),
      "model.rest_length_factors.bridle", "unknown line set"),
+    (("[line_sets]", "[points]\nknot = 0\n\n[line_sets]"), "points.knot",
+     "node 0 is held or fixed"),
+    (("[line_sets]", "[points]\ncentre = 29\n\n[model.point_masses_kg]\ncentre = -1.0\n\n"
+                     "[line_sets]"), "model.point_masses_kg.centre", "expected a number >= 0"),
 ])
 def test_campaign_errors_name_file_key_and_reason_and_nothing_is_written(tmp_path, change,
                                                                            key, reason):
@@ -147,9 +151,16 @@ def test_every_problem_at_once_and_model_file_checked(tmp_path):
                                            "rest_length_factors": {"trailing_edge": 0.95}}}))
     assert fitting.read_model_file(model, campaign) == fitting.KiteModel(
         "curvature", 0.5, {"trailing_edge": 0.95})
-    model.write_text(json.dumps({"model": {"bending_scale": -1}}))
-    with pytest.raises(fitting.CampaignError, match="model.bending_scale: expected a positive"):
-        fitting.read_model_file(model, campaign)
+    model.write_text(json.dumps({"model": {"pressure_offset_bar": -0.01,
+                                           "suspension_offsets_mm": {"116.z": 4.0}}}))
+    assert fitting.read_model_file(model, campaign) == fitting.KiteModel(
+        pressure_offset_bar=-0.01, suspension_offsets_mm={"116.z": 4.0})
+    for table, words in (({"bending_scale": -1}, "model.bending_scale: expected a positive"),
+                         ({"suspension_offsets_mm": {"82.w": 1.0}},
+                          "model.suspension_offsets_mm.82.w: unknown suspension axis")):
+        model.write_text(json.dumps({"model": table}))
+        with pytest.raises(fitting.CampaignError, match=words):
+            fitting.read_model_file(model, campaign)
 
 
 def test_measured_lengths_are_read_by_the_table_reader(tmp_path):

@@ -25,6 +25,10 @@ from .kite_fem_mini import write_mini_kite
 
 NAMES = ("bending_scale", "rest_length_factors.bridle")
 PLANTED = (0.4, 0.97)
+#: Values searched as they are (a mass [kg], offsets [bar], [mm]); the solver differentiates
+#: with respect to these too, so that one compiled program serves every test here.
+OFFSETS = ("point_masses_kg.knot", "pressure_offset_bar", "suspension_offsets_mm.11.y",
+           "suspension_offsets_mm.12.y")
 NOISE_M = 0.001
 
 CAMPAIGN = """
@@ -39,6 +43,10 @@ strut1 = [4, 9]
 
 [line_sets]
 bridle = [[11, 1], [11, 2], [12, 4], [12, 5]]
+
+[points]
+centre = 3
+knot = 10
 
 [hang]
 load_stages = [0.5, 1.0]
@@ -79,11 +87,11 @@ def kite(tmp_path_factory):
     (folder / "campaign.toml").write_text(CAMPAIGN)
     campaign = fitting.read_campaign(folder / "campaign.toml")
     case = campaign.case("hung")
-    solver = fitting.CaseSolver(campaign)
+    solver = fitting.CaseSolver(campaign, tangent_values=NAMES + OFFSETS)
 
-    def solve(values):
-        model = fitting.with_values(fitting.KiteModel(), NAMES, values)
-        positions, tangents, converged = solver.tangents(case, model, NAMES)
+    def solve(values, names=NAMES):
+        model = fitting.with_values(fitting.KiteModel(), names, values)
+        positions, tangents, converged = solver.tangents(case, model, names)
         assert converged
         return positions, tangents
 
@@ -129,6 +137,27 @@ def test_smooth_metric_gradient_through_the_equilibrium_matches_central_differen
             estimates.append((plus - minus) / (2 * h))
         assert estimates[1] == pytest.approx(estimates[0], rel=1e-3)
         assert gradient[k] == pytest.approx(estimates[1], rel=2e-3)
+
+
+def test_tangents_in_a_point_mass_and_offsets(kite):
+    """The equilibrium's tangents in a point mass [kg], the pressure offset [bar] and the
+    suspension points' offsets [mm] (searched as they are) against central differences of
+    the positions; moving both suspension points by 1 mm along y translates every node by
+    1 mm along y (gravity is the same everywhere: a rigid motion is an equilibrium)."""
+    _, solve, _ = kite
+    names = NAMES + OFFSETS
+    values = np.array(PLANTED + (0.3, 0.0, 0.0, 0.0))
+    positions, tangents = solve(values, names)
+    free = np.abs(tangents[..., 2]).max(axis=1) > 0  # nodes a dead load moves
+    assert free.sum() >= 10
+    np.testing.assert_allclose(tangents[free][..., 4:].sum(axis=-1), np.tile(
+        [0.0, 1e-3, 0.0], (free.sum(), 1)), atol=1e-9)
+    for k, h in ((2, 5e-3), (3, 5e-4), (4, 1.0)):
+        step = np.eye(len(names))[k] * h
+        central = (solve(values + step, names)[0] - solve(values - step, names)[0]) / (2 * h)
+        scale = np.abs(tangents[..., k]).max()
+        assert scale > 0
+        np.testing.assert_allclose(tangents[..., k], central, atol=2e-4 * scale)
 
 
 def test_smooth_optimum_is_the_peers_score_within_a_millimetre(kite):

@@ -8,8 +8,16 @@ default ``bending_scale``) fitted to every calibration case
 current model with each candidate effect (:class:`fitting.ShapeEffect`) freed, the values
 are fitted to all cases but one and the left-out case is scored (smooth RMS,
 :func:`fitting.smooth_shape_score`); a candidate's *held-out gain* is the fall of the mean
-over left-out cases of the squared RMS [mm²]. Every fit starts from the current model's
-values (the last optimum), the candidate's at the null 1.
+over left-out cases of the squared RMS [mm²]. ``held_out="linearised"`` (the default) takes
+each fit to the other cases as one Gauss-Newton step from the fit to every case without the
+left-out case's rows (the case-deletion formula of least squares, exact for a model linear
+in its values near the optimum), clipped to the bounds, and re-registers the left-out case
+in the same linearisation (:func:`linearised_held_out`): no solve beyond the fit to every
+case. ``held_out="refit"`` fits the values to the other cases and solves the left-out case
+(a fit per case and candidate). Every fit starts from the current model's
+values (the last optimum), the candidate's at its null (1 for a factor, 0 for a mass or an
+offset, clipped into its plausible range), and every solve from the case's last
+equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
 
 **Statistics** (as the curve diagnosis, :mod:`fitting._diagnose.ranking`, where they apply):
 each candidate is also fitted to every case; with ``RSS`` the tube markers' smooth distances'
@@ -32,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 from scipy.stats import chi2
@@ -39,13 +48,15 @@ from scipy.stats import chi2
 from .._json import finite_or_none
 from .._shape.markers import load_markers
 from .._shape.smooth import smooth_shape_score
-from .calibrate import CampaignCalibration, calibrate_campaign
+from .calibrate import CampaignCalibration, calibrate_campaign, on_bound, value_bounds
 from .file import Campaign
-from .kite import campaign_tube_surfaces
+from .kite import campaign_tube_surfaces, search_coordinates
 from .model import KiteModel
 from .solve import CaseSolver
 
 BIC_THRESHOLD = 10.0
+#: How a left-out case is scored (module docstring).
+HELD_OUT = ("linearised", "refit")
 CLOSE_BIC = 10.0
 ALPHA = 0.01
 #: Gauss-Newton steps per fit (each starts from the last optimum).
@@ -125,12 +136,17 @@ class ShapeDiagnosis:
 
 
 def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates, cases,
-                      solver: CaseSolver, log=print, bar=None) -> ShapeDiagnosis:
+                      solver: CaseSolver, log=print, bar=None,
+                      held_out: str = "linearised") -> ShapeDiagnosis:
     """Diagnose ``model`` on ``cases`` (at least two, each with markers): fit the values
     ``baseline``, then add ``candidates`` (:class:`fitting.ShapeEffect`) by the module
     docstring's rule. ``solver`` should differentiate with respect to every value involved
     (``CaseSolver(campaign, tangent_values=...)``: one compiled program per route);
-    ``bar``: an optional progress bar (``update(1)`` per fit)."""
+    ``bar``: an optional progress bar (``update(1)`` per fit); ``held_out``:
+    ``"linearised"`` or ``"refit"`` (module docstring)."""
+    if held_out not in HELD_OUT:
+        raise ValueError(f"held_out: expected one of {', '.join(HELD_OUT)}, found "
+                         f"{held_out!r}")
     cases = list(cases)
     if len(cases) < 2:
         raise ValueError(f"diagnose: {len(cases)} calibration case; leaving one case out "
@@ -139,13 +155,17 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
     quiet = lambda text: None  # noqa: E731
 
     def fit(start, names, on, bounds):
+        started = time.perf_counter()
         found = calibrate_campaign(campaign, start, names, on, solver, bounds=bounds,
                                    max_steps=FIT_STEPS, log=quiet)
+        log(f"  fit of {', '.join(names)} to {len(on)} cases: {found.evaluations} "
+            f"evaluations, {time.perf_counter() - started:.1f} s, mean square RMS "
+            f"{np.mean(np.square(list(found.rms_mm_after.values()))):.1f} mm^2")
         if bar is not None:
             bar.update(1)
         return found
 
-    def held_out(start, names, bounds):
+    def refit_held_out(start, names, bounds):
         rms = {}
         for case in cases:
             found = fit(start, names, [c for c in cases if c != case], bounds)
@@ -158,18 +178,27 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
                                            canopy_group=campaign.canopy_group).rms_mm
         return rms
 
+    def scored(fitted, start, names, bounds):
+        """``(held-out RMS {case: mm}, the fit to every case)``: ``fitted`` (or a new fit
+        from ``start`` when ``None``) and its cases scored when left out."""
+        full = fit(start, names, cases, bounds) if fitted is None else fitted
+        if held_out == "refit":
+            return refit_held_out(start, names, bounds), full
+        return linearised_held_out(full, {n: bounds.get(n, value_bounds(n))
+                                          for n in names}), full
+
     names, bounds = tuple(baseline), {}
     log(f"baseline: {', '.join(names)} fitted to {', '.join(cases)}")
     current = fit(model, names, cases, bounds)
     baseline_fit, added, steps, unseparated = current, [], [], []
     remaining = [e for e in candidates if not set(e.values) & set(names)]
     while remaining:
-        current_held = held_out(current.model, names, bounds)
+        current_held, _ = scored(current, current.model, names, bounds)
         current_square = float(np.mean(np.square(list(current_held.values()))))
         log(f"current model ({', '.join(names)}): held-out RMS "
             + ", ".join(f"{c} {r:.1f}" for c, r in current_held.items()) + " mm")
-        ranking = [_rank(effect, current, current_square, names, bounds, cases, fit,
-                         held_out, len(remaining)) for effect in remaining]
+        ranking = [_rank(effect, current, current_square, names, bounds, scored,
+                         len(remaining)) for effect in remaining]
         for entry in ranking:
             log(f"  {entry.effect.name}: held-out gain {entry.held_out_gain_mm2:.1f} mm^2, "
                 f"BIC fall {entry.bic_fall:.1f}, p {entry.p_value:.2g}"
@@ -205,13 +234,12 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
                           tuple(unseparated), verdict)
 
 
-def _rank(effect, current, current_square, names, bounds, cases, fit, held_out, in_play):
+def _rank(effect, current, current_square, names, bounds, scored, in_play):
     """One candidate's :class:`ShapeCandidateRanking` (module docstring)."""
     trial_names = names + effect.values
     trial_bounds = {**bounds, **effect.bounds}
     try:
-        rms = held_out(current.model, trial_names, trial_bounds)
-        full = fit(current.model, trial_names, cases, trial_bounds)
+        rms, full = scored(None, current.model, trial_names, trial_bounds)
     except RuntimeError as error:
         return ShapeCandidateRanking(effect, {}, math.nan, math.nan, math.nan, math.nan, None,
                                 (f"a fit failed: {error}",))
@@ -230,10 +258,37 @@ def _rank(effect, current, current_square, names, bounds, cases, fit, held_out, 
         reasons.append(f"the BIC falls by {bic_fall:.1f} <= {BIC_THRESHOLD}")
     for name, (low, high) in effect.bounds.items():
         value = float(full.values[full.names.index(name)])
-        if min(abs(math.log(value / low)), abs(math.log(value / high))) < 1e-3:
+        if on_bound(name, value, (low, high)):
             reasons.append(f"{name} = {value:.4g} on an edge of its plausible range "
                            f"{low}-{high}")
     if not full.converged:
         reasons.append(f"the fit did not converge ({full.message})")
     return ShapeCandidateRanking(effect, rms, gain, float(delta), p_value, float(bic_fall), full,
                             tuple(reasons))
+
+
+def linearised_held_out(fit: CampaignCalibration, bounds: dict) -> dict:
+    """``{case: smooth RMS [mm]}`` of each of ``fit``'s cases when its values are fitted to
+    the others, from ``fit.least_squares`` alone: one Gauss-Newton step from the optimum on
+    the other cases' rows (their registrations free), clipped to ``bounds`` (``{name: (low,
+    high)}``), applied to the left-out case's residuals in the same linearisation, and that
+    case re-registered (its six registration columns projected out)."""
+    jacobian, residual, rows = fit.least_squares
+    k = len(fit.names)
+    theta = search_coordinates(fit.names, fit.values)
+    low = search_coordinates(fit.names, [bounds[n][0] for n in fit.names])
+    high = search_coordinates(fit.names, [bounds[n][1] for n in fit.names])
+    rms = {}
+    for c, (case, (first, last)) in enumerate(rows.items()):
+        others = np.ones(len(residual), bool)
+        others[first:last] = False
+        free = np.ones(jacobian.shape[1], bool)
+        free[k + 6 * c:k + 6 * c + 6] = False
+        step = -np.linalg.lstsq(jacobian[others][:, free], residual[others], rcond=None)[0]
+        step = np.clip(theta + step[:k], low, high) - theta
+        own = jacobian[first:last]
+        moved = residual[first:last] + own[:, :k] @ step
+        registration = own[:, k + 6 * c:k + 6 * c + 6]
+        moved = moved - registration @ np.linalg.lstsq(registration, moved, rcond=None)[0]
+        rms[case] = 1e3 * float(np.sqrt(np.mean(np.square(moved))))
+    return rms

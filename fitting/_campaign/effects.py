@@ -2,7 +2,8 @@
 range it plausibly takes.
 
 An effect (:class:`ShapeEffect`) names the model values (:func:`fitting.model_value`) it
-frees and, for each, its plausible range, a factor on the model file's value. The diagnosis
+frees and, for each, its plausible range: a factor on the model file's value, or for a
+mass or an offset (:func:`fitting.is_offset`) the added amount in the value's unit. The diagnosis
 (:mod:`fitting._campaign.diagnose`) fits an effect's values within that range; an effect
 whose fit ends on an edge of its range is not named (the data want it beyond what is
 physical: something else is missing), as the curve diagnosis does not name an effect whose
@@ -15,8 +16,16 @@ Built-in effects (:func:`shape_effects`; ``SET``: each of the campaign's ``[line
   stiffness measured on leading edges and struts spans about a factor of ten either side of
   Breukels' 2011 fit (Breukels 2011, ch. 3; the V3 calibration finds 0.27);
 - ``torsion``: the torsion law's factor (``torsion_scale``), 0.1-10;
-- ``pressure``: a factor on every case's stated overpressure (``pressure_factor``), 0.8-1.25:
-  a hand gauge's error at 0.1-0.3 bar and the tube's pressure change when hung;
+- ``pressure``: an offset on every case's stated overpressure (``pressure_offset_bar``),
+  -0.03 to +0.03 bar: a hand gauge's zero error and the tube's pressure change when hung,
+  at 0.1-0.3 bar;
+- ``point_mass.POINT``: a mass hung at a named point (``[points]``;
+  ``point_masses_kg.POINT``), 0-2 kg: shackles, a marker board, a wet patch of canopy,
+  rigging left on the kite;
+- ``suspension``: every suspension point but the first moved along x, y and z
+  (``suspension_offsets_mm.NODE.AXIS``), -100 to +100 mm: where a hanging rig holds the
+  bridle points is known to a few centimetres; the first stays, since moving every point
+  together is a rigid motion the markers' registration absorbs;
 - ``rest_length.SET``: the rest lengths of a line set (``rest_length_factors.SET``), 0.9-1.1:
   Dyneema bridles shrink and creep by a few per cent; sewing tolerances of a canopy edge;
 - ``stiffness.SET``: the axial stiffness of a line set (``stiffness_factors.SET``), 0.1-10;
@@ -43,8 +52,8 @@ import dataclasses
 from pathlib import Path
 
 from .._user_files import import_user_file
-from .file import Campaign
-from .kite import unknown_value_words
+from .file import AXES, Campaign
+from .kite import is_offset, unknown_value_words
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,8 +64,8 @@ class ShapeEffect:
         name: how the diagnosis names it.
         values: model value names (:func:`fitting.model_value`), e.g.
             ``("rest_length_factors.bridle",)``.
-        plausible: ``((low, high), ...)`` per value: the factors it can physically take
-            (fits are bounded to this range).
+        plausible: ``((low, high), ...)`` per value: the factors (or, for a mass or an
+            offset, the amounts) it can physically take (fits are bounded to this range).
         description: what it is, in words.
     """
 
@@ -70,8 +79,14 @@ class ShapeEffect:
             raise ValueError(f"effect {self.name!r}: expected one plausible range (low, high) "
                              f"per value, found {len(self.plausible)} for {len(self.values)}")
         for value, (low, high) in zip(self.values, self.plausible):
-            if not 0 < low < high:
-                raise ValueError(f"effect {self.name!r}: {value}: expected 0 < low < high, "
+            if value.startswith("point_masses_kg."):
+                valid, words = 0 <= low < high, "0 <= low < high (a mass)"
+            elif is_offset(value):
+                valid, words = low < high, "low < high"
+            else:
+                valid, words = 0 < low < high, "0 < low < high (a factor)"
+            if not valid:
+                raise ValueError(f"effect {self.name!r}: {value}: expected {words}, "
                                  f"found ({low}, {high})")
 
     @property
@@ -84,8 +99,12 @@ class ShapeEffect:
 KITE_EFFECTS = {
     "bending": ("bending_scale", (0.05, 5.0), "the tubes' bending law scaled"),
     "torsion": ("torsion_scale", (0.1, 10.0), "the tubes' torsion law scaled"),
-    "pressure": ("pressure_factor", (0.8, 1.25), "every case's overpressure scaled"),
+    "pressure": ("pressure_offset_bar", (-0.03, 0.03), "every case's overpressure offset"),
 }
+#: A point mass's plausible range [kg] (module docstring).
+POINT_MASS_KG = (0.0, 2.0)
+#: A suspension point's plausible offset along each axis [mm] (module docstring).
+SUSPENSION_OFFSET_MM = (-100.0, 100.0)
 #: The built-in effects of each line set: prefix -> (value kind, plausible, description).
 LINE_SET_EFFECTS = {
     "rest_length": ("rest_length_factors", (0.9, 1.1), "the rest lengths of line set"),
@@ -107,6 +126,17 @@ def shape_effects(campaign: Campaign) -> dict:
         effects[name] = ShapeEffect(name, (f"bending_class_factors.{tube_class}",),
                                     ((0.2, 5.0),), f"the bending law of the {tube_class!r} "
                                                    "tubes scaled")
+    for point in campaign.points:
+        effects[f"point_mass.{point}"] = ShapeEffect(
+            f"point_mass.{point}", (f"point_masses_kg.{point}",), (POINT_MASS_KG,),
+            f"a mass hung at point {point!r} (node {campaign.points[point]})")
+    if len(campaign.suspension) > 1:
+        moved = [f"suspension_offsets_mm.{node}.{axis}" for node in campaign.suspension[1:]
+                 for axis in AXES]
+        effects["suspension"] = ShapeEffect(
+            "suspension", tuple(moved), (SUSPENSION_OFFSET_MM,) * len(moved),
+            f"suspension points {', '.join(map(str, campaign.suspension[1:]))} moved "
+            f"relative to {campaign.suspension[0]}")
     return effects
 
 

@@ -30,6 +30,8 @@ from .._tables import DataError
 from .model import CampaignError, KiteModel, ProblemCollector, read_model_values
 
 ROLES = ("calibrate", "predict")
+#: The axes of a suspension point's offsets (the model file's frame).
+AXES = "xyz"
 ROUTES = ("gravity", "stages", "drive")
 
 
@@ -113,6 +115,7 @@ class Campaign:
         diagnose_baseline: the values the diagnosis' baseline fits (``[diagnose]
             baseline``); diagnose_candidates: the candidate effects' names (``[diagnose]
             candidates``; ``None``: every built-in effect).
+        points: ``{name: node}``: named nodes (``[points]``) a point mass may hang from.
     """
 
     path: Path
@@ -129,6 +132,12 @@ class Campaign:
     tube_classes: dict = dataclasses.field(default_factory=dict)
     diagnose_baseline: tuple = ("bending_scale",)
     diagnose_candidates: tuple | None = None
+    points: dict = dataclasses.field(default_factory=dict)
+
+    def members(self) -> dict:
+        """``{kind: member names}`` of the model's per-member values (line sets, tube
+        classes, points, suspension axes ``"NODE.AXIS"``)."""
+        return value_members(self.suspension, self.line_sets, self.tube_classes, self.points)
 
     def case(self, name: str) -> CampaignCase:
         for case in self.cases:
@@ -136,6 +145,14 @@ class Campaign:
                 return case
         raise KeyError(f"{self.path}: no case named {name!r} (cases: "
                        f"{', '.join(c.name for c in self.cases)})")
+
+
+def value_members(suspension, line_sets, tube_classes, points) -> dict:
+    """``{kind: member names}`` of the model's per-member values (:meth:`Campaign.members`)."""
+    return {"rest_length_factors": tuple(line_sets), "stiffness_factors": tuple(line_sets),
+            "bending_class_factors": tuple(tube_classes), "point_masses_kg": tuple(points),
+            "suspension_offsets_mm": tuple(f"{node}.{axis}" for node in suspension
+                                           for axis in AXES)}
 
 
 def _line_set(value, where, checker, model) -> tuple:
@@ -232,7 +249,7 @@ def read_campaign(path) -> Campaign:
     except tomllib.TOMLDecodeError as error:
         raise CampaignError([jt.Problem(str(path), f"not TOML: {error}")]) from None
     checker.unknown_keys(data, ("structure", "model", "hang", "line_sets", "tubes",
-                                "lengths", "cases", "diagnose", "tube_classes"), "")
+                                "lengths", "cases", "diagnose", "tube_classes", "points"), "")
     structure = data.get("structure", {})
     checker.unknown_keys(structure, ("kite_fem", "suspension", "gravity_m_s2"), "structure")
     if "kite_fem" not in structure:
@@ -304,8 +321,13 @@ def read_campaign(path) -> Campaign:
                                                 f"{', '.join(tubes_table)}), found {groups!r}")
             continue
         tube_classes[name] = tuple(groups)
-    model_values = read_model_values(data.get("model", {}), "model", checker, line_sets,
-                                     tube_classes)
+    points = {}
+    for name, node in data.get("points", {}).items():
+        node = checker.node(node, f"points.{name}", n, movable)
+        if node is not None:
+            points[name] = node
+    model_values = read_model_values(data.get("model", {}), "model", checker, value_members(
+        suspension, line_sets, tube_classes, points))
 
     pairs, length_rows, column = _read_lengths(data.get("lengths", {}), base, checker, model)
     cases, names = [], set()
@@ -369,7 +391,8 @@ def read_campaign(path) -> Campaign:
     return Campaign(path, model, suspension, gravity, model_values, hang, line_sets, tubes,
                     canopy_group, pairs, tuple(cases), tube_classes,
                     lists["baseline"] or ("bending_scale",),
-                    lists["candidates"])
+                    lists["candidates"], points)
+
 
 
 def _default_route(loads) -> str:

@@ -4,10 +4,14 @@ for the markers, its line sets and measured lengths.
 The structure is imported once per case (:func:`jaxtube.import_kite_fem`: the case's
 pressure; every case has the same structure and parameter shapes), the case's loads are set
 as dead forces on their nodes, and the model's values (:class:`KiteModel`) are put into the
-parameters: the bending law's factor (``law_form``: :class:`jaxtube.CurvatureScaledLaw` or
-:class:`jaxtube.ScaledLaw` over Breukels' 2011 law) and the rest lengths of each named line
-set times its factor. Values are parameters, not structure: one compiled program serves
-every value (:mod:`fitting._campaign.solve`).
+parameters (:func:`with_model_values`): the bending law's factor (``law_form``:
+:class:`jaxtube.CurvatureScaledLaw` or :class:`jaxtube.ScaledLaw` over Breukels' 2011 law),
+per tube class and for torsion, the pressure's factor and offset, the rest lengths and
+stiffnesses of each named line set times their factors, point masses at named points (dead
+loads) and the suspension points' offsets (the fixed points' positions). Values are
+parameters, not structure: one compiled program serves every value
+(:mod:`fitting._campaign.solve`). Factors are searched by their logarithm, masses and
+offsets as they are (:func:`search_coordinates`).
 """
 
 from __future__ import annotations
@@ -15,13 +19,14 @@ from __future__ import annotations
 import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 import jaxtube as jt
 
 from .._shape.surfaces import TubeSurfaces
-from .file import Campaign, CampaignCase
+from .file import AXES, Campaign, CampaignCase
 from .model import KiteModel
 
 
@@ -45,21 +50,29 @@ def tube_class_members(campaign: Campaign, tube_names, tube_class: str) -> np.nd
     return np.asarray(members, bool)
 
 
+PASCAL_PER_BAR = 1e5
+
+
 def with_model_values(campaign: Campaign, params: jt.StructureParameters,
-                      model: KiteModel, tube_names=None) -> jt.StructureParameters:
-    """``params`` with ``model``'s bending and torsion factors on every tube's laws, every
-    tube's pressure times the pressure factor, and the rest lengths and stiffnesses of each
-    line set times their factors (the laws must already be scaled laws of ``model.law_form``:
-    :func:`import_campaign_case`). The tubes of a tube class (``tube_names``: the imported
-    kite's, needed for ``model.bending_class_factors``) have their bending factor times the
-    class's."""
+                      model: KiteModel, imported: jt.KiteFemImport | None = None
+                      ) -> jt.StructureParameters:
+    """``params`` with ``model``'s values: the bending and torsion factors on every tube's
+    laws (the laws must already be scaled laws of ``model.law_form``:
+    :func:`import_campaign_case`), every tube's pressure times the pressure factor plus the
+    pressure offset, the rest lengths and stiffnesses of each line set times their factors,
+    each named point's mass as a dead load along gravity and the suspension points moved by
+    their offsets. ``imported`` (the kite these parameters are of) is needed for the values
+    that act on named tubes or nodes: ``bending_class_factors``, ``point_masses_kg``,
+    ``suspension_offsets_mm``. Every value enters differentiably (traced values welcome)."""
+    needs_kite = [kind for kind in ("bending_class_factors", "point_masses_kg",
+                                    "suspension_offsets_mm") if getattr(model, kind)]
+    if needs_kite and imported is None:
+        raise ValueError(f"with_model_values: {', '.join(needs_kite)} need the imported kite")
     scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
     count = len(params.bending_laws)
     bending = [model.bending_scale] * count
     for name, factor in model.bending_class_factors.items():
-        if tube_names is None:
-            raise ValueError("with_model_values: bending_class_factors need the tube names")
-        for t in np.flatnonzero(tube_class_members(campaign, tube_names, name)):
+        for t in np.flatnonzero(tube_class_members(campaign, imported.tube_names, name)):
             bending[t] = bending[t] * factor
     for field, factors in (("bending_laws", bending),
                            ("torsion_laws", [model.torsion_scale] * count)):
@@ -67,7 +80,8 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
                      if isinstance(law, scaled) else law
                      for law, factor in zip(getattr(params, field), factors))
         params = eqx.tree_at(lambda p, field=field: getattr(p, field), params, laws)
-    params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor)
+    params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor
+                         + model.pressure_offset_bar * PASCAL_PER_BAR)
     elements = params.elements
     for kind, values in (("line_rest_length", model.rest_length_factors),
                          ("line_stiffness", model.stiffness_factors)):
@@ -77,39 +91,87 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
             in_set[line_set_rows(campaign, name)] = True
             array = array * jnp.where(in_set, factor, 1.0)  # differentiable in the factor
         elements = eqx.tree_at(lambda e, kind=kind: getattr(e, kind), elements, array)
-    return eqx.tree_at(lambda p: p.elements, params, elements)
+    params = eqx.tree_at(lambda p: p.elements, params, elements)
+    for point, mass in model.point_masses_kg.items():
+        node = int(imported.node_index[campaign.points[point]])
+        weight = mass * jnp.asarray(campaign.gravity)
+        params = jt.with_node_dead_load(imported.structure, params, node,
+                                        jt.node_dead_load(imported.structure, params, node)
+                                        + weight)
+    for member, offset in model.suspension_offsets_mm.items():
+        node, _, axis = member.partition(".")
+        row = suspension_point_row(imported, int(node))
+        moved = params.elements.point_position.at[row, AXES.index(axis)].add(offset / 1000)
+        params = eqx.tree_at(lambda p: p.elements.point_position, params, moved)
+    return params
 
 
-VALUE_KINDS = ("rest_length_factors", "stiffness_factors", "bending_class_factors")
-#: The model's values that act on the whole kite (the others are per line set).
-KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor")
+def suspension_point_row(imported: jt.KiteFemImport, node: int) -> int:
+    """The row of suspension ``node`` (a fixed point of the imported kite) in
+    ``params.elements.point_position``; ``ValueError`` if it is a tube node (held by a
+    support at the tube's own node: its position is the tube's, not a value)."""
+    index = int(imported.node_index[node])
+    if index < imported.structure.node_count:
+        raise ValueError(f"suspension node {node} lies on a tube: its position is not a model "
+                         "value (only a suspension point off the tubes can be moved)")
+    return index - imported.structure.node_count
+
+
+#: The model's values per named member (a line set, tube class, point or suspension axis).
+VALUE_KINDS = ("rest_length_factors", "stiffness_factors", "bending_class_factors",
+               "point_masses_kg", "suspension_offsets_mm")
+#: The model's values that act on the whole kite.
+KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor", "pressure_offset_bar")
+#: Values that add to the model file's (null 0, searched as they are); the others are
+#: factors on it (null 1, searched by their logarithm).
+OFFSET_KINDS = ("pressure_offset_bar", "point_masses_kg", "suspension_offsets_mm")
+
+
+def is_offset(name: str) -> bool:
+    """Value ``name`` adds to the model file's (a mass, an offset) rather than scaling it."""
+    return name.partition(".")[0] in OFFSET_KINDS
+
+
+def search_coordinates(names, values) -> np.ndarray:
+    """``[k]``: the coordinates fits search ``values`` of ``names`` in: the logarithm of a
+    factor, an offset as it is."""
+    return np.asarray([float(v) if is_offset(n) else np.log(float(v))
+                       for n, v in zip(names, values)])
+
+
+def values_from_search(names, theta):
+    """The values of ``names`` at search coordinates ``theta`` ``[k]`` (NumPy or traced):
+    the inverse of :func:`search_coordinates`."""
+    xp = jnp if isinstance(theta, jax.Array) else np
+    return xp.stack([theta[k] if is_offset(n) else xp.exp(theta[k])
+                     for k, n in enumerate(names)])
 
 
 def model_value(model: KiteModel, name: str) -> float:
-    """One of ``model``'s values by name: one of :data:`KITE_VALUES`,
-    ``"rest_length_factors.SET"``, ``"stiffness_factors.SET"`` or
-    ``"bending_class_factors.CLASS"`` (a line set or class without a factor: 1)."""
+    """One of ``model``'s values by name: one of :data:`KITE_VALUES`, or ``KIND.MEMBER`` with
+    ``KIND`` one of :data:`VALUE_KINDS`: ``"rest_length_factors.SET"``,
+    ``"stiffness_factors.SET"``, ``"bending_class_factors.CLASS"``,
+    ``"point_masses_kg.POINT"``, ``"suspension_offsets_mm.NODE.AXIS"`` (a member without a
+    value: its null, 1 for a factor and 0 for an offset)."""
     if name in KITE_VALUES:
         return getattr(model, name)
-    kind, _, line_set = name.partition(".")
-    if kind not in VALUE_KINDS or not line_set:
+    kind, _, member = name.partition(".")
+    if kind not in VALUE_KINDS or not member:
         raise ValueError(f"unknown model value {name!r} (expected one of "
-                         f"{', '.join(KITE_VALUES)}, 'rest_length_factors.SET', "
-                         "'stiffness_factors.SET' or 'bending_class_factors.CLASS')")
-    return getattr(model, kind).get(line_set, 1.0)
+                         f"{', '.join(KITE_VALUES)} or KIND.MEMBER with KIND one of "
+                         f"{', '.join(VALUE_KINDS)})")
+    return getattr(model, kind).get(member, 0.0 if is_offset(name) else 1.0)
 
 
 def unknown_value_words(campaign: Campaign, name: str) -> str | None:
     """Why ``name`` is not one of ``campaign``'s model values (``None``: it is)."""
     kind, _, member = name.partition(".")
-    known = campaign.tube_classes if kind == "bending_class_factors" else campaign.line_sets
-    if name in KITE_VALUES or (kind in VALUE_KINDS and member in known):
+    members = campaign.members()
+    if name in KITE_VALUES or member in members.get(kind, ()):
         return None
-    return (f"unknown value {name!r} (expected {', '.join(KITE_VALUES)}, "
-            f"rest_length_factors.SET or stiffness_factors.SET with SET one of: "
-            f"{', '.join(campaign.line_sets) or 'no line sets'}, or "
-            f"bending_class_factors.CLASS with CLASS one of: "
-            f"{', '.join(campaign.tube_classes) or 'no tube classes'})")
+    members = "; ".join(f"{k}.{{{', '.join(names) or 'none'}}}"
+                        for k, names in members.items())
+    return f"unknown value {name!r} (expected {', '.join(KITE_VALUES)} or one of: {members})"
 
 
 def with_values(model: KiteModel, names, values) -> KiteModel:
@@ -121,8 +183,8 @@ def with_values(model: KiteModel, names, values) -> KiteModel:
         if name in KITE_VALUES:
             changed[name] = values[k]
         else:
-            kind, _, line_set = name.partition(".")
-            changed[kind][line_set] = values[k]
+            kind, _, member = name.partition(".")
+            changed[kind][member] = values[k]
     return dataclasses.replace(model, **changed)
 
 
@@ -148,7 +210,7 @@ def import_campaign_case(campaign: Campaign, case: CampaignCase,
     for node, force in forces.items():
         params = jt.with_node_dead_load(imported.structure, params, node, force)
     return dataclasses.replace(imported, params=with_model_values(campaign, params, model,
-                                                                  imported.tube_names))
+                                                                  imported))
 
 
 def campaign_tube_surfaces(campaign: Campaign, positions=None) -> TubeSurfaces:

@@ -44,6 +44,12 @@ class KiteModel:
             :class:`jaxtube.ScaledLaw`; 1: as published).
         pressure_factor: the factor on every case's tube overpressure (1: the pressure the
             case states; a gauge that reads 10 % low is 1.1).
+        pressure_offset_bar: added to every case's tube overpressure [bar] after the factor
+            (a gauge's zero error).
+        point_masses_kg: ``{point: mass [kg]}`` hung at a named point (``[points]``), a
+            dead load along gravity besides the case's loads.
+        suspension_offsets_mm: ``{"NODE.AXIS": offset [mm]}``: a suspension point moved from
+            the model file's position along ``x``, ``y`` or ``z`` of the model's frame.
     """
 
     law_form: str = "curvature"
@@ -53,17 +59,22 @@ class KiteModel:
     torsion_scale: float = 1.0
     pressure_factor: float = 1.0
     bending_class_factors: dict = dataclasses.field(default_factory=dict)
+    pressure_offset_bar: float = 0.0
+    point_masses_kg: dict = dataclasses.field(default_factory=dict)
+    suspension_offsets_mm: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"law_form": self.law_form, "bending_scale": float(self.bending_scale),
                 "torsion_scale": float(self.torsion_scale),
                 "pressure_factor": float(self.pressure_factor),
+                "pressure_offset_bar": float(self.pressure_offset_bar),
                 "rest_length_factors": {k: float(v) for k, v in
                                         self.rest_length_factors.items()},
                 "stiffness_factors": {k: float(v) for k, v in
                                       self.stiffness_factors.items()},
-                "bending_class_factors": {k: float(v) for k, v in
-                                          self.bending_class_factors.items()}}
+                **{kind: {k: float(v) for k, v in getattr(self, kind).items()}
+                   for kind in ("bending_class_factors", "point_masses_kg",
+                                "suspension_offsets_mm")}}
 
 
 class ProblemCollector:
@@ -114,10 +125,20 @@ class ProblemCollector:
                          f"unknown key (expected one of: {', '.join(known)})")
 
 
-def read_model_values(table, where, checker, line_sets, tube_classes) -> KiteModel:
-    """A :class:`KiteModel` from a ``[model]`` table (or a model.json object)."""
+#: The model's values per named member: kind -> (what a member is, the value's check).
+MEMBER_VALUES = {"rest_length_factors": ("line set", "positive"),
+                 "stiffness_factors": ("line set", "positive"),
+                 "bending_class_factors": ("tube class", "positive"),
+                 "point_masses_kg": ("point", "not negative"),
+                 "suspension_offsets_mm": ("suspension axis (NODE.AXIS)", "finite")}
+
+
+def read_model_values(table, where, checker, members) -> KiteModel:
+    """A :class:`KiteModel` from a ``[model]`` table (or a model.json object);
+    ``members``: ``{kind: names}`` the campaign's members of each kind of
+    :data:`MEMBER_VALUES` (:meth:`Campaign.members`)."""
     known = ("law_form", "bending_scale", "torsion_scale", "pressure_factor",
-             "rest_length_factors", "stiffness_factors", "bending_class_factors")
+             "pressure_offset_bar") + tuple(MEMBER_VALUES)
     for key in table:
         if key not in known:
             checker.add(f"{where}.{key}", "unknown effect (the model's values are: "
@@ -129,25 +150,28 @@ def read_model_values(table, where, checker, line_sets, tube_classes) -> KiteMod
     scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
     torsion = checker.number(table, "torsion_scale", where, default=1.0, positive=True)
     pressure = checker.number(table, "pressure_factor", where, default=1.0, positive=True)
-    factors = {}
-    for kind, known_names, words in (("rest_length_factors", line_sets, "line set"),
-                                     ("stiffness_factors", line_sets, "line set"),
-                                     ("bending_class_factors", tube_classes, "tube class")):
-        factors[kind] = {}
+    offset = checker.number(table, "pressure_offset_bar", where, default=0.0)
+    values = {}
+    for kind, (words, check) in MEMBER_VALUES.items():
+        values[kind] = {}
         given = table.get(kind, {})
         if not isinstance(given, dict):
-            checker.add(f"{where}.{kind}", f"expected a table {{{words} = factor}}")
+            checker.add(f"{where}.{kind}", f"expected a table {{{words} = value}}")
             continue
         for name in given:
-            if name not in known_names:
+            if name not in members[kind]:
                 checker.add(f"{where}.{kind}.{name}",
-                            f"unknown {words} (the campaign's {words}s: "
-                            f"{', '.join(known_names) or 'none'})")
+                            f"unknown {words} (the campaign's: "
+                            f"{', '.join(members[kind]) or 'none'})")
                 continue
-            factors[kind][name] = checker.number(given, name, f"{where}.{kind}", positive=True)
-    return KiteModel(form, scale or 1.0, factors["rest_length_factors"],
-                     factors["stiffness_factors"], torsion or 1.0, pressure or 1.0,
-                     factors["bending_class_factors"])
+            value = checker.number(given, name, f"{where}.{kind}", positive=check == "positive",
+                                   minimum=0.0 if check == "not negative" else None)
+            if value is not None:
+                values[kind][name] = value
+    return KiteModel(form, scale or 1.0, values["rest_length_factors"],
+                     values["stiffness_factors"], torsion or 1.0, pressure or 1.0,
+                     values["bending_class_factors"], offset or 0.0,
+                     values["point_masses_kg"], values["suspension_offsets_mm"])
 
 
 def read_model_file(path, campaign) -> KiteModel:
@@ -164,8 +188,7 @@ def read_model_file(path, campaign) -> KiteModel:
     if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
         raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
                                                    "'model'", "model")])
-    model = read_model_values(table["model"], "model", checker, campaign.line_sets,
-                              campaign.tube_classes)
+    model = read_model_values(table["model"], "model", checker, campaign.members())
     if len(checker.report):
         raise CampaignError(checker.report.problems)
     return model

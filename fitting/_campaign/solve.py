@@ -29,7 +29,14 @@ import numpy as np
 import jaxtube as jt
 
 from .file import Campaign, CampaignCase
-from .kite import import_campaign_case, model_value, with_model_values, with_values
+from .kite import (
+    import_campaign_case,
+    model_value,
+    search_coordinates,
+    values_from_search,
+    with_model_values,
+    with_values,
+)
 from .model import KiteModel
 
 
@@ -86,12 +93,23 @@ class CaseSolver:
     ``tangent_values``: when given, :meth:`tangents` always differentiates with respect to
     these values (a superset of every ``names`` it is asked for) and returns the columns
     asked for, so that fits of different sets of values (a diagnosis) share one compiled
-    program per route."""
+    program per route.
 
-    def __init__(self, campaign: Campaign, tangent_values=None):
+    ``warm_starts``: :meth:`tangents` starts each case from its last converged equilibrium
+    (of whatever values it was last solved with) in one full-load solve (the hang route's
+    program, every stage at full load), and falls back to the case's own route from the
+    undeformed shape when that does not converge. :meth:`solve` always takes the route.
+    ``record`` lists every :meth:`tangents` call: ``{"case", "warm", "newton_iterations",
+    "seconds", "converged"}`` (a fallback adds both solves)."""
+
+    def __init__(self, campaign: Campaign, tangent_values=None, warm_starts: bool = True):
         self.campaign = campaign
         self.solver = jt.NewtonKKT(max_steps=campaign.hang.max_newton_steps)
         self.tangent_values = None if tangent_values is None else tuple(tangent_values)
+        self.warm_starts = warm_starts
+        self.record: list = []
+        self._last: dict = {}
+        self._plain: dict = {}
 
     def _schedule(self, case: CampaignCase, model_blend: float):
         stages = self.campaign.hang.load_stages
@@ -101,22 +119,33 @@ class CaseSolver:
         return stages, ((model_blend if first is None else first),) + \
             (model_blend,) * (len(stages) - 1)
 
-    def _route(self, imported: jt.KiteFemImport, case: CampaignCase):
-        """``(key, run, arguments)``: the case's route as a function of the parameters (and
-        the stages and blend widths), its cache key and its arguments."""
-        drive_node = int(imported.node_index[case.loads[0].node]) if case.route == "drive" \
-            else None
+    def _route(self, imported: jt.KiteFemImport, case: CampaignCase, start=None):
+        """``(key, run, arguments)``: the case's route as a function of the parameters (and,
+        for a hang, the stages, blend widths and start), its cache key and its arguments.
+        ``start`` (a :class:`jaxtube.HangStart`): instead of the route, full gravity and
+        loads at the model's blend from there, through the hang program of every route."""
+        drive_node = int(imported.node_index[case.loads[0].node]) \
+            if case.route == "drive" and start is None else None
         key = (str(self.campaign.kite_fem.path), self.campaign.suspension, self.campaign.hang,
                "drive" if drive_node is not None else "hang",
                type(imported.params.bending_laws[0]).__name__, drive_node)
         structure, solver, hang = imported.structure, self.solver, self.campaign.hang
         if drive_node is None:
-            def run(params, load_factors, blends):
+            def run(params, load_factors, blends, start, warm):
+                cold = jt.undeformed_start(structure, params)
+                begin = jax.tree_util.tree_map(lambda w, c: jnp.where(warm, w, c), start, cold)
                 return jt.hang_kite(structure, params, solver=solver, load_factors=load_factors,
-                                    tension_smoothing=blends)
+                                    tension_smoothing=blends, start=begin)
 
-            return key, run, (imported.params, *map(jnp.asarray, self._schedule(
-                case, float(imported.params.elements.tension_smoothing))))
+            blend = float(imported.params.elements.tension_smoothing)
+            if start is None:
+                schedule = self._schedule(case, blend)
+                start, warm = jt.undeformed_start(structure, imported.params), False
+            else:
+                schedule = ((1.0,) * len(hang.load_stages), (blend,) * len(hang.load_stages))
+                warm = True
+            return key, run, (imported.params, *map(jnp.asarray, schedule), start,
+                              jnp.asarray(warm))
 
         def run(params):
             gravity_only = jt.with_node_dead_load(structure, params, drive_node, jnp.zeros(3))
@@ -130,64 +159,84 @@ class CaseSolver:
 
         return key, run, (imported.params,)
 
-    def _program(self, imported: jt.KiteFemImport, case: CampaignCase):
-        key, run, arguments = self._route(imported, case)
-        return _compiled(key, run, *arguments)
-
     def tangents(self, case: CampaignCase, model: KiteModel, names) -> tuple:
-        """The case's equilibrium and its tangents with respect to the logarithms of
-        ``model``'s values ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``,
-        ``"stiffness_factors.SET"``, ...: :func:`fitting.model_value`),
-        by forward mode through the solve (implicit function theorem; a drive only supplies
-        the start of the last solve). Returns ``(positions [N, 3] [m], tangents [N, 3, k]
-        [m per unit log value], converged)`` in the model file's numbering (held nodes do
-        not move). One more compiled program per route and set of names (per route only, with
-        ``tangent_values``)."""
+        """The case's equilibrium and its tangents with respect to ``model``'s values
+        ``names`` (``"bending_scale"``, ``"rest_length_factors.SET"``,
+        ``"point_masses_kg.POINT"``, ...: :func:`fitting.model_value`) in their search
+        coordinates (:func:`fitting.search_coordinates`: the logarithm of a factor, a mass or
+        an offset as it is), by forward mode through the solve (implicit function theorem;
+        a drive only supplies the start of the last solve). Returns ``(positions [N, 3] [m],
+        tangents [N, 3, k] [m per unit coordinate], converged)`` in the model file's
+        numbering (held nodes do not move). One more compiled program per route and set of
+        names (per route only, with ``tangent_values``); a warm start (``warm_starts``) uses
+        the hang route's."""
         asked = tuple(names)
         names = asked if self.tangent_values is None else self.tangent_values
         missing = set(asked) - set(names)
         if missing:
             raise ValueError(f"tangents: {sorted(missing)} not among the solver's "
                              f"tangent_values {list(names)}")
-        plain = import_campaign_case(self.campaign, case, KiteModel(model.law_form))
-        key, run, arguments = self._route(plain, case)
-        theta = jnp.log(jnp.asarray([model_value(model, name) for name in names]))
-        campaign = self.campaign
-
-        def positions(theta, params, *schedule):
-            values = with_values(model, names, jnp.exp(theta))
-            result = run(with_model_values(campaign, params, values, plain.tube_names),
-                         *schedule)
-            solution = result if case.route != "drive" else jax.tree_util.tree_map(
-                lambda x: x[None], result[1].equilibrium)
-            x = solution.node_position[-1]
-            return x, (x, solution.converged[-1])
-
-        program, _ = _compiled(("tangents", names) + key,
-                               jax.jacfwd(positions, has_aux=True), theta, *arguments)
-        jacobian, (x, converged) = program(theta, *arguments)
+        if (case.name, model.law_form) not in self._plain:  # the same for every value
+            self._plain[case.name, model.law_form] = import_campaign_case(
+                self.campaign, case, KiteModel(model.law_form))
+        plain = self._plain[case.name, model.law_form]
+        theta = jnp.asarray(search_coordinates(names, [model_value(model, n) for n in names]))
+        start = self._last.get(case.name) if self.warm_starts else None
+        jacobian, x, converged = self._tangent_solve(plain, case, model, names, theta, start)
+        if start is not None and not converged:
+            jacobian, x, converged = self._tangent_solve(plain, case, model, names, theta,
+                                                         None)
         mapped = plain.node_index >= 0
         tangent = np.zeros(plain.model.node_position.shape + (len(names),))
         tangent[mapped] = np.asarray(jacobian)[plain.node_index[mapped]]
         columns = [names.index(name) for name in asked]
-        return plain.kite_positions(np.asarray(x)), tangent[..., columns], bool(converged)
+        return plain.kite_positions(np.asarray(x)), tangent[..., columns], converged
+
+    def _tangent_solve(self, plain, case, model, names, theta, start):
+        """``(jacobian, positions, converged)`` of one solve for :meth:`tangents` (from
+        ``start``, or by the case's route when ``None``); keeps the equilibrium as the case's
+        next start when it converged."""
+        key, run, arguments = self._route(plain, case, start)
+        campaign, drive = self.campaign, key[3] == "drive"
+
+        def positions(theta, params, *schedule):
+            values = with_values(model, names, values_from_search(names, theta))
+            result = run(with_model_values(campaign, params, values, plain), *schedule)
+            solution, iterations = _last_solve(result, drive)
+            x = solution.node_position[-1]
+            return x, (x, solution.converged[-1], iterations, jt.restart_from(solution))
+
+        # The program closes over the model's other values and the campaign's named sets:
+        # they are part of its key (a program is never reused with other constants).
+        constants = repr((with_values(model, names, [0.0] * len(names)), campaign.line_sets,
+                          campaign.tube_classes, campaign.points, campaign.gravity.tolist()))
+        program, _ = _compiled(("tangents", names, constants) + key,
+                               jax.jacfwd(positions, has_aux=True), theta, *arguments)
+        started = time.perf_counter()
+        jacobian, (x, converged, iterations, reached) = jax.block_until_ready(
+            program(theta, *arguments))
+        converged = bool(converged)
+        self.record.append({"case": case.name, "warm": start is not None,
+                            "newton_iterations": int(iterations),
+                            "seconds": time.perf_counter() - started, "converged": converged})
+        if converged:
+            self._last[case.name] = reached
+        return jacobian, x, converged
 
     def solve(self, case: CampaignCase, model: KiteModel) -> CaseSolution:
-        """Solve ``case`` with ``model``'s values (compiled ahead, then timed warm)."""
+        """Solve ``case`` with ``model``'s values by its route from the undeformed shape
+        (compiled ahead, then timed warm)."""
         imported = import_campaign_case(self.campaign, case, model)
-        program, compile_seconds = self._program(imported, case)
-        blend = float(imported.params.elements.tension_smoothing)
-        arguments = (imported.params,)
-        if case.route != "drive":
-            arguments += tuple(map(jnp.asarray, self._schedule(case, blend)))
+        key, run, arguments = self._route(imported, case)
+        program, compile_seconds = _compiled(key, run, *arguments)
         started = time.perf_counter()
         result = jax.block_until_ready(program(*arguments))
         seconds = time.perf_counter() - started
         if case.route != "drive":
             stages, solution, drive = result, result, None
-            factors, blends = self._schedule(case, blend)
-            words = (f"load factors {list(factors)} ({case.route}), the lines' blend widths "
-                     f"{list(blends)}")
+            factors, blends = arguments[1:3]
+            words = (f"load factors {np.asarray(factors).tolist()} ({case.route}), the "
+                     f"lines' blend widths {np.asarray(blends).tolist()}")
         else:
             stages, driven = result
             solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
@@ -213,3 +262,14 @@ class CaseSolver:
         return CaseSolution(case, imported, solution, positions,
                             bool(np.asarray(solution.converged)[-1]), iterations,
                             stage_converged, drive, words, seconds, compile_seconds)
+
+
+def _last_solve(result, drive: bool):
+    """``(solution with a leading stage axis, Newton iterations in all)`` of a route's
+    result (a hang's stages, or a drive's ``(stages, driven)``: its dead-load solve)."""
+    if not drive:
+        return result, jnp.sum(result.iterations)
+    stages, driven = result
+    solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
+    return solution, (jnp.sum(stages.iterations) + jnp.sum(driven.path.iterations)
+                      + driven.equilibrium.iterations)

@@ -19,10 +19,11 @@ determine), ``cases.csv`` and ``rms_before_after.png`` (each case's smooth RMS b
 after).
 
 ``jaxtube shape diagnose CAMPAIGN.toml [--effect NAME|FILE.py:NAME ...] [--model model.json]
-[--cases A B ...] --out DIR``: which candidate effect the model misses
-(:mod:`fitting._campaign.diagnose`): the baseline (``[diagnose] baseline``) fitted to the
-calibration cases, the candidates (``[diagnose] candidates``, default every built-in effect,
-plus ``--effect``) ranked by what they gain on cases left out of the fit, the best added
+[--cases A B ...] [--held-out linearised|refit] --out DIR``: which candidate effect the model
+misses (:mod:`fitting._campaign.diagnose`): the baseline (``[diagnose] baseline``) fitted to
+the calibration cases, the candidates (``[diagnose] candidates``, default every built-in
+effect, plus ``--effect``) ranked by what they gain on cases left out of the fit (by one
+linearised step from the fit to every case, or by refitting), the best added
 until none passes: ``report.txt``, ``diagnosis.json``, ``model.json`` (the model it ends
 with), ``cases.csv``, ``rms_before_after.png`` (baseline and final) and ``ranking.png``.
 Exit 1 when the final model did not converge.
@@ -41,12 +42,13 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 import jaxtube as jt
 
 from .._campaign.calibrate import calibrate_campaign
-from .._campaign.diagnose import diagnose_campaign
+from .._campaign.diagnose import HELD_OUT, diagnose_campaign
 from .._campaign.diagnosis_report import diagnosis_report, ranking_figure
 from .._campaign.effects import resolve_shape_effect, shape_effects
 from .._campaign.file import read_campaign
@@ -59,7 +61,7 @@ from .._campaign.report import (
     rms_before_after_figure,
 )
 from .._campaign.solve import CaseSolver
-from .._json import write_json
+from .._json import finite_or_none, write_json
 from .._shape.files import ShapeFileError
 from .._shape.markers import load_markers
 from .common import bad_output_directory, write_directory
@@ -98,6 +100,10 @@ def add_shape(subparsers) -> None:
                                  metavar="NAME|FILE.py:NAME",
                                  help="another candidate: a built-in effect or a user's "
                                       "ShapeEffect (docs/shapes.md)")
+            command.add_argument("--held-out", choices=HELD_OUT, default=HELD_OUT[0],
+                                 help="how a case left out of the fit is scored: one "
+                                      "linearised step from the fit to every case (default) "
+                                      "or a fit to the other cases and a solve")
         if name == "compare":
             command.add_argument("--no-figures", action="store_true",
                                  help="write the tables and JSON only")
@@ -241,6 +247,22 @@ def _diagnosis_inputs(args, campaign):
     return campaign.diagnose_baseline, candidates
 
 
+def solve_statistics(record) -> dict:
+    """``{"warm" | "from_undeformed": {"solves", "newton_iterations_median",
+    "seconds_median", "seconds_total"}}`` of a :class:`fitting.CaseSolver`'s record."""
+    statistics = {}
+    for key, warm in (("warm", True), ("from_undeformed", False)):
+        solves = [r for r in record if r["warm"] == warm]
+        statistics[key] = {
+            "solves": len(solves),
+            "newton_iterations_median": finite_or_none(np.median(
+                [r["newton_iterations"] for r in solves]) if solves else float("nan")),
+            "seconds_median": finite_or_none(np.median([r["seconds"] for r in solves])
+                                             if solves else float("nan")),
+            "seconds_total": float(sum(r["seconds"] for r in solves))}
+    return statistics
+
+
 def run_diagnose(args, campaign, model, names) -> int:
     """Run ``shape diagnose``; returns the exit code."""
     inputs = _diagnosis_inputs(args, campaign)
@@ -258,9 +280,10 @@ def run_diagnose(args, campaign, model, names) -> int:
     with tqdm(desc="shape diagnose fits", unit="fit", file=sys.stderr) as bar:
         found = diagnose_campaign(campaign, model, baseline, candidates, names, solver,
                                   log=lambda text: bar.write(text, file=sys.stderr),
-                                  bar=bar)
+                                  bar=bar, held_out=args.held_out)
     seconds = time.perf_counter() - started
-    document = found.to_json() | {"seconds": seconds, "cases": names}
+    document = found.to_json() | {"seconds": seconds, "cases": names,
+                                  "solves": solve_statistics(solver.record)}
     before, after = found.baseline.rms_mm_after, found.final.rms_mm_after
     rows = "case,rms_mm_start,rms_mm_baseline,rms_mm_final\n" + "".join(
         f"{c},{found.baseline.rms_mm_before[c]!r},{before[c]!r},{after[c]!r}\n"

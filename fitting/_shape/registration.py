@@ -12,11 +12,11 @@ markers have a spanwise family such as ``strut0 .. strut7``, see
 :mod:`fitting._shape.markers`), starts from the centroid-and-principal-axes alignment of
 the markers with the model's tube axes (the four proper sign choices of the axes), each also
 turned by +-90 degrees about each principal axis (28 starts); from each,
-Levenberg-Marquardt (Nielsen's damping, all starts in one batch, exact Jacobian by JAX) on
-``R = exp([phi]x) R_start``, ``phi`` a rotation vector starting at 0, so no start sits at the
-rotation vector's singularity. The least RMS over all starts and orders wins, and is
-iterated on alone until its cost changes by less than 1e-14 relatively (or no damping gives
-a descent step): ``converged``.
+Levenberg-Marquardt (Nielsen's damping, all starts in one batch, exact Jacobian by JAX, one
+compiled ``lax.while_loop``) on ``R = exp([phi]x) R_start``, ``phi`` a rotation vector
+starting at 0, so no start sits at the rotation vector's singularity. The least RMS over
+all starts and orders wins, and is iterated on alone until its cost changes by less than
+1e-14 relatively (or no damping gives a descent step): ``converged``.
 
 **Gradients** (:func:`marker_rms`): with the registration ``g*(x)`` optimal for node
 positions ``x``, ``d/dx RMS(x, g*(x)) = dRMS/dx (x, g*)`` because ``dRMS/dg = 0`` at the
@@ -157,52 +157,68 @@ def _with_jacobian(parameters, start_rotation, surfaces, points, groups, weights
     return residual(parameters), jax.jacfwd(residual)(parameters)
 
 
-_batched = eqx.filter_jit(jax.vmap(_with_jacobian, in_axes=(0, 0, None, None, 0, None)))
+_batched = jax.vmap(_with_jacobian, in_axes=(0, 0, None, None, 0, None))
 
 
-def _batched_levenberg_marquardt(evaluate, parameters: np.ndarray, iterations: int,
-                                 tolerance: float, active: np.ndarray | None = None,
-                                 prune_after: int | None = None):
-    """Levenberg-Marquardt (Nielsen's damping update) on ``k`` problems at once.
+@eqx.filter_jit
+def _batched_levenberg_marquardt(parameters: Array, stopped: Array, iterations: Array,
+                                 tolerance: Array, prune_after: Array, start_rotation: Array,
+                                 surfaces: TubeSurfaces, points: Array, groups: Array,
+                                 weights: Array):
+    """Levenberg-Marquardt (Nielsen's damping update) on ``k`` problems at once, one
+    compiled ``lax.while_loop``.
 
-    ``evaluate(parameters [k, 6]) -> (residual [k, m], jacobian [k, m, 6])``. A problem stops
-    moving once its cost changes by less than ``tolerance`` relatively over an accepted
-    step, or once no damping gives a descent step (a local minimum). Only ``active``
-    problems move. With ``prune_after``, from that iteration on a problem whose cost exceeds
-    four times the least cost (twice the RMS) stops: a start that far behind after that
-    many steps sits in another basin. Returns ``(parameters [k, 6], cost [k], stopped [k])``.
+    ``parameters [k, 6]`` start each problem (``[phi, translation]`` of
+    :func:`_moved_distances`); the residuals and their exact Jacobian come from ``_batched``.
+    A problem stops moving once its cost changes by less than ``tolerance`` relatively over
+    an accepted step, or once no damping gives a descent step (a local minimum); problems
+    with ``stopped [k]`` set never move. From iteration ``prune_after`` on, a problem whose
+    cost exceeds four times the least cost (twice the RMS) stops: a start that far behind
+    after that many steps sits in another basin. The loop ends after ``iterations`` steps or
+    once every problem has stopped. ``iterations``, ``tolerance`` and ``prune_after`` are
+    traced, so both phases of :func:`register` share one program. Returns
+    ``(parameters [k, 6], cost [k], stopped [k])``.
     """
-    residual, jacobian = evaluate(parameters)
-    cost = np.sum(residual ** 2, 1)
-    damping = np.full(len(parameters), 1e-3)
-    growth = np.full(len(parameters), 2.0)
-    converged = np.zeros(len(parameters), bool) if active is None else ~active
-    for iteration in range(iterations):
-        normal = np.einsum("kmi,kmj->kij", jacobian, jacobian)
-        gradient = np.einsum("kmi,km->ki", jacobian, residual)
-        scale = damping[:, None] * np.maximum(np.einsum("kii->ki", normal), 1e-12)
-        step = -np.linalg.solve(normal + scale[:, :, None] * np.eye(6), gradient[..., None])[..., 0]
-        step[converged] = 0.0
-        trial_residual, trial_jacobian = evaluate(parameters + step)
-        trial_cost = np.sum(trial_residual ** 2, 1)
-        predicted = -np.einsum("ki,ki->k", step, 2 * gradient + np.einsum(
+    constants = (start_rotation, surfaces, points, groups, weights)
+    residual, jacobian = _batched(parameters, *constants)
+    cost = jnp.sum(residual ** 2, 1)
+    k = parameters.shape[0]
+    state = (jnp.asarray(0), parameters, residual, jacobian, cost, jnp.full(k, 1e-3),
+             jnp.full(k, 2.0), stopped)
+
+    def going(state):
+        iteration, *_, stopped = state
+        return (iteration < iterations) & ~jnp.all(stopped)
+
+    def step_once(state):
+        iteration, parameters, residual, jacobian, cost, damping, growth, stopped = state
+        normal = jnp.einsum("kmi,kmj->kij", jacobian, jacobian)
+        gradient = jnp.einsum("kmi,km->ki", jacobian, residual)
+        scale = damping[:, None] * jnp.maximum(jnp.einsum("kii->ki", normal), 1e-12)
+        step = -jnp.linalg.solve(normal + scale[:, :, None] * jnp.eye(6),
+                                 gradient[..., None])[..., 0]
+        step = jnp.where(stopped[:, None], 0.0, step)
+        trial_residual, trial_jacobian = _batched(parameters + step, *constants)
+        trial_cost = jnp.sum(trial_residual ** 2, 1)
+        predicted = -jnp.einsum("ki,ki->k", step, 2 * gradient + jnp.einsum(
             "kij,kj->ki", normal, step))
-        ratio = (cost - trial_cost) / np.where(predicted > 0, predicted, np.inf)
-        accept = (ratio > 0) & ~converged
-        converged |= accept & (cost - trial_cost <= tolerance * cost)
-        parameters = np.where(accept[:, None], parameters + step, parameters)
-        residual = np.where(accept[:, None], trial_residual, residual)
-        jacobian = np.where(accept[:, None, None], trial_jacobian, jacobian)
-        cost = np.where(accept, trial_cost, cost)
-        damping = np.where(accept, damping * np.maximum(1 / 3, 1 - (2 * ratio - 1) ** 3),
-                           np.minimum(damping * growth, 1e13))
-        growth = np.where(accept, 2.0, np.minimum(growth * 2, 1e3))
-        converged |= damping >= 1e13  # no descent step left: a (local) minimum
-        if prune_after is not None and iteration >= prune_after:
-            converged |= cost > 4 * cost.min()
-        if converged.all():
-            break
-    return parameters, cost, converged
+        ratio = (cost - trial_cost) / jnp.where(predicted > 0, predicted, jnp.inf)
+        accept = (ratio > 0) & ~stopped
+        stopped = stopped | (accept & (cost - trial_cost <= tolerance * cost))
+        parameters = jnp.where(accept[:, None], parameters + step, parameters)
+        residual = jnp.where(accept[:, None], trial_residual, residual)
+        jacobian = jnp.where(accept[:, None, None], trial_jacobian, jacobian)
+        cost = jnp.where(accept, trial_cost, cost)
+        damping = jnp.where(accept, damping * jnp.maximum(1 / 3, 1 - (2 * ratio - 1) ** 3),
+                            jnp.minimum(damping * growth, 1e13))
+        growth = jnp.where(accept, 2.0, jnp.minimum(growth * 2, 1e3))
+        stopped = stopped | (damping >= 1e13)  # no descent step left: a (local) minimum
+        stopped = stopped | ((iteration >= prune_after) & (cost > 4 * jnp.min(cost)))
+        return (iteration + 1, parameters, residual, jacobian, cost, damping, growth,
+                stopped)
+
+    _, parameters, _, _, cost, _, _, stopped = jax.lax.while_loop(going, step_once, state)
+    return parameters, cost, stopped
 
 
 def _principal_axes(points: np.ndarray) -> np.ndarray:
@@ -244,15 +260,27 @@ def refuse_degenerate_markers(points: np.ndarray, source: str) -> None:
 
 
 def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="auto",
-             canopy_group: str = CANOPY_GROUP, max_iterations: int = 60) -> RegistrationResult:
+             canopy_group: str = CANOPY_GROUP, max_iterations: int = 60,
+             start: Registration | None = None) -> RegistrationResult:
     """Best rigid registration of ``markers`` onto ``surfaces`` (search in the module
     docstring). ``spanwise_groups``: ``"auto"`` (the largest numbered family among the
     marker groups, see :func:`fitting._shape.markers.spanwise_family`), a tuple of group
-    names in spanwise order, or ``()`` to keep the numbering as it is."""
-    if spanwise_groups == "auto":
-        spanwise_groups = spanwise_family(g for g in markers.group_names if g != canopy_group)
-    spanwise_groups = tuple(spanwise_groups)
-    orders = (False, True) if spanwise_groups else (False,)
+    names in spanwise order, or ``()`` to keep the numbering as it is.
+
+    ``start``: a registration of the same markers onto a nearby shape (e.g. the last
+    evaluation of a fit): no search, only the tight phase from it, with its group matching
+    (its spanwise order and groups; ``spanwise_groups`` and ``canopy_group`` are then
+    ignored). It finds the minimum of the basin ``start`` lies in, which is the search's
+    winner while the shape moves little."""
+    if start is not None:
+        spanwise_groups, canopy_group = start.spanwise_groups, start.canopy_group
+        orders = (start.reversed_order,)
+    else:
+        if spanwise_groups == "auto":
+            spanwise_groups = spanwise_family(g for g in markers.group_names
+                                              if g != canopy_group)
+        spanwise_groups = tuple(spanwise_groups)
+        orders = (False, True) if spanwise_groups else (False,)
     groups = np.stack([marker_surface_groups(
         markers, surfaces, spanwise_groups=spanwise_groups, reversed_order=order,
         canopy_group=canopy_group) for order in orders])
@@ -275,31 +303,40 @@ def register(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="aut
     used = np.isin(np.asarray(surfaces.segment_group), groups[0, tube])
     model_points = np.asarray(surfaces.node_positions)[
         np.asarray(surfaces.segment_nodes)[used].reshape(-1)]
-    rotations = start_rotations(measured, model_points)
-    start = np.asarray(rotations * len(orders))                       # [k, 3, 3]
+    if start is None:
+        rotations = start_rotations(measured, model_points)
+        initial = np.tile(np.concatenate([np.zeros(3), model_points.mean(0)]),
+                          (len(rotations) * len(orders), 1))
+    else:
+        rotations = [np.asarray(rotation_matrix(start.rotation_vector))]
+        initial = np.concatenate([np.zeros(3), np.asarray(start.translation) + (
+            centroid - np.asarray(start.marker_centroid)) @ rotations[0].T])[None]
+    start_rotation = np.asarray(rotations * len(orders))              # [k, 3, 3]
     order = np.repeat(np.arange(len(orders)), len(rotations))         # [k]
-    initial = np.tile(np.concatenate([np.zeros(3), model_points.mean(0)]), (len(start), 1))
-    constants = (jnp.asarray(start), surfaces, jnp.asarray(points),
+    constants = (jnp.asarray(start_rotation), surfaces, jnp.asarray(points),
                  jnp.asarray(padded_groups[order]), jnp.asarray(weights))
-
-    def evaluate(parameters):
-        residual, jacobian = _batched(jnp.asarray(parameters), *constants)
-        return np.asarray(residual), np.asarray(jacobian)
-
-    parameters, cost, _ = _batched_levenberg_marquardt(evaluate, initial, max_iterations,
-                                                       tolerance=1e-8, prune_after=10)
-    rms = np.sqrt(cost / tube.size)
-    rms_by_order = {orders[j]: float(rms[order == j].min()) for j in range(len(orders))}
-    # The best start is then iterated alone to a tight tolerance (the same compiled batch).
-    best = int(np.argmin(rms))
+    parameters = jnp.asarray(initial)
+    if start is None:
+        parameters, cost, _ = _batched_levenberg_marquardt(
+            parameters, jnp.zeros(len(start_rotation), bool), jnp.asarray(max_iterations),
+            jnp.asarray(1e-8), jnp.asarray(10), *constants)
+        rms = np.sqrt(np.asarray(cost) / tube.size)
+        rms_by_order = {orders[j]: float(rms[order == j].min()) for j in range(len(orders))}
+        best = int(np.argmin(rms))
+    else:
+        rms_by_order, best = {}, 0
+    # The best start is then iterated alone to a tight tolerance (the same compiled loop).
     parameters, cost, converged = _batched_levenberg_marquardt(
-        evaluate, parameters, 200, tolerance=1e-14, active=np.arange(len(start)) == best)
-    rotation = np.asarray(rotation_matrix(jnp.asarray(parameters[best, :3]))) @ start[best]
+        parameters, jnp.asarray(np.arange(len(start_rotation)) != best), jnp.asarray(200),
+        jnp.asarray(1e-14), jnp.asarray(200), *constants)
+    parameters, cost, converged = np.asarray(parameters), np.asarray(cost), np.asarray(converged)
+    rotation = np.asarray(rotation_matrix(jnp.asarray(parameters[best, :3]))) @ \
+        start_rotation[best]
     registration = Registration(jnp.asarray(Rotation.from_matrix(rotation).as_rotvec()),
                                 jnp.asarray(parameters[best, 3:]), jnp.asarray(centroid),
                                 spanwise_groups, orders[order[best]], canopy_group)
     final = float(np.sqrt(cost[best] / tube.size))
     rms_by_order[orders[order[best]]] = final
     message = "converged" if converged[best] else "iteration limit reached"
-    return RegistrationResult(registration, final, rms_by_order, len(start),
+    return RegistrationResult(registration, final, rms_by_order, len(start_rotation),
                               bool(converged[best]), message)

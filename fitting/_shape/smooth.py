@@ -33,7 +33,7 @@ import numpy as np
 
 from .._data.units import MM_PER_M
 from .markers import CANOPY_GROUP, MarkerSet
-from .registration import RegistrationResult, marker_rms, register
+from .registration import Registration, RegistrationResult, marker_rms, register
 from .surfaces import TubeSurfaces
 
 
@@ -75,12 +75,15 @@ class SmoothScore:
 
 
 def smooth_shape_score(surfaces: TubeSurfaces, markers: MarkerSet, *, spanwise_groups="auto",
-                       canopy_group: str = CANOPY_GROUP) -> SmoothScore:
+                       canopy_group: str = CANOPY_GROUP,
+                       start: Registration | None = None) -> SmoothScore:
     """Register ``markers`` onto ``surfaces`` with continuous radii and return the RMS and
-    its gradient with respect to the node positions (module docstring)."""
+    its gradient with respect to the node positions (module docstring). ``start``: the
+    registration of the same markers on a nearby shape, iterated from instead of the search
+    (:func:`fitting.register`)."""
     smooth = continuous_radius(surfaces)
     found = register(smooth, markers, spanwise_groups=spanwise_groups,
-                     canopy_group=canopy_group)
+                     canopy_group=canopy_group, start=start)
     value, gradient = jax.value_and_grad(lambda x: marker_rms(
         smooth.with_positions(x), markers, found.registration))(smooth.node_positions)
     return SmoothScore(float(value) * MM_PER_M, np.asarray(gradient), found)
