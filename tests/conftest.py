@@ -38,7 +38,7 @@ jax.config.update("jax_compilation_cache_dir", str(_CACHE))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
-# The fast tier (``python -m pytest -m "not slow"``, about 3 minutes warm) leaves out these
+# The fast tier (``python -m pytest -m "not slow"``, about 2.5 minutes warm) leaves out these
 # files whole: each runs fits, diagnoses, subprocesses or study-sized solves, or compiles a
 # large program of its own (a minute or more warm). A single slow test elsewhere carries
 # ``@pytest.mark.slow`` itself. CI runs everything.
@@ -49,6 +49,8 @@ SLOW_FILES = frozenset({
     "test_v3_hanging.py", "test_v3_import.py", "test_kite_fem_hang.py",
     "test_shape_diagnose.py", "test_shape_smooth.py", "test_diagnosis_trust.py",
     "test_dynamics_time.py", "test_dynamics_cli.py", "test_sweep_cluster.py",
+    "test_sweep.py", "test_members.py", "test_dynamics_modes.py", "test_gradients.py",
+    "test_dead_load_drive.py",
 })
 
 
