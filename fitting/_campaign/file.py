@@ -27,7 +27,13 @@ import jaxtube as jt
 
 from .._shape.files import load_measured_lengths
 from .._tables import DataError
-from .model import CampaignError, KiteModel, ProblemCollector, read_model_values
+from .model import (
+    CampaignError,
+    KiteModel,
+    ProblemCollector,
+    parse_document,
+    read_model_values,
+)
 
 ROLES = ("calibrate", "predict")
 #: The axes of a suspension point's offsets (the model file's frame).
@@ -242,12 +248,7 @@ def read_campaign(path) -> Campaign:
     path = Path(path)
     base = path.parent
     checker = ProblemCollector(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
-    except tomllib.TOMLDecodeError as error:
-        raise CampaignError([jt.Problem(str(path), f"not TOML: {error}")]) from None
+    data = parse_document(path, tomllib.loads, tomllib.TOMLDecodeError, "TOML")
     checker.unknown_keys(data, ("structure", "model", "hang", "line_sets", "tubes",
                                 "lengths", "cases", "diagnose", "tube_classes", "points"), "")
     structure = data.get("structure", {})

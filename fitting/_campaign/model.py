@@ -174,17 +174,23 @@ def read_model_values(table, where, checker, members) -> KiteModel:
                      values["point_masses_kg"], values["suspension_offsets_mm"])
 
 
+def parse_document(path: Path, loads, decode_error: type[Exception], kind: str):
+    """``loads(path's text)``; a missing file or a ``decode_error`` raises
+    :class:`CampaignError` naming the file (``kind``: the format, e.g. ``"TOML"``)."""
+    try:
+        return loads(path.read_text())
+    except FileNotFoundError:
+        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
+    except decode_error as error:
+        raise CampaignError([jt.Problem(str(path), f"not {kind}: {error}")]) from None
+
+
 def read_model_file(path, campaign) -> KiteModel:
     """A model.json written by ``jaxtube shape`` (or by hand): the ``[model]`` keys as JSON,
     checked against ``campaign``'s line sets."""
     path = Path(path)
     checker = ProblemCollector(path)
-    try:
-        table = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CampaignError([jt.Problem(str(path), "file not found")]) from None
-    except json.JSONDecodeError as error:
-        raise CampaignError([jt.Problem(str(path), f"not JSON: {error}")]) from None
+    table = parse_document(path, json.loads, json.JSONDecodeError, "JSON")
     if not isinstance(table, dict) or not isinstance(table.get("model"), dict):
         raise CampaignError([jt.Problem(str(path), "expected a JSON object with an object "
                                                    "'model'", "model")])
