@@ -49,13 +49,18 @@ from .._structure.structure import GROUND, Structure
 CENTROID = "segment_centroid"
 
 
+def segment_centroids(structure: Structure, geometry, state: dict) -> Array:
+    """The segments' midpoints ``[S, 3]`` [m] from the kinematics of ``state``."""
+    _, step = segment_steps(geometry, state)
+    start, end, _ = positions_from_steps(structure, state["root_position"], step)
+    return 0.5 * (start + end)
+
+
 def extended_state(structure: Structure, geometry, state: dict) -> dict:
     """``state`` with the segment centroids ``[S, 3]`` [m] added (unchanged without tubes)."""
     if not structure.segment_count:
         return state
-    _, step = segment_steps(geometry, state)
-    start, end, _ = positions_from_steps(structure, state["root_position"], step)
-    return dict(state, **{CENTROID: 0.5 * (start + end)})
+    return dict(state, **{CENTROID: segment_centroids(structure, geometry, state)})
 
 
 def structure_state(state: dict) -> dict:
@@ -67,9 +72,7 @@ def centroid_ties(structure: Structure, geometry, state: dict) -> Array:
     """``u_s - (start_s + end_s) / 2`` ``[3 S]`` [m]."""
     if not structure.segment_count:
         return jnp.zeros((0,))
-    _, step = segment_steps(geometry, state)
-    start, end, _ = positions_from_steps(structure, state["root_position"], step)
-    return (state[CENTROID] - 0.5 * (start + end)).reshape(-1)
+    return (state[CENTROID] - segment_centroids(structure, geometry, state)).reshape(-1)
 
 
 def constraints_and_energy(structure: Structure, geometry, state: dict, params):
