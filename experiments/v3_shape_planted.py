@@ -11,7 +11,11 @@ Gaussian noise (``--noise-mm``, default 2). Plants:
 
 - ``none``: nothing besides the hand-made model (the verdict should add no effect);
 - ``central_struts``: the two central struts' (``strut3``, ``strut4``) bending law x 2.5,
-  where the candidate ``bending.struts`` scales all eight struts together.
+  where the candidate ``bending.struts`` scales all eight struts together;
+- ``rear_bridles``: the rest lengths of one bridle group, the four rear bridle lines on each
+  side (kite_fem's ``br1`` to ``br4``, from the struts' trailing ends to their knots) 3 %
+  short. The planted campaign names that group as the line set ``rear_bridles``, so the
+  candidates gain ``rest_length.rear_bridles`` and ``stiffness.rear_bridles``.
 
 The diagnosis then runs on the planted campaign (the V3 campaign with the planted markers)
 from the plain model with the baseline ``bending_scale`` and the trailing edge's rest
@@ -44,7 +48,13 @@ from fitting._shape.surfaces import tube_surface_distance
 ROOT = Path(__file__).resolve().parent
 DATA = ROOT / "data" / "v3_hanging"
 CASES = ["P1_S", "P1_PL1", "P1_PL2", "P1_TL1", "P1_TL2"]
-PLANTS = {"none": {}, "central_struts": {"central_struts": 2.5}}
+# Per plant: the bending law's factor per tube class, the rest-length factor per line set.
+PLANTS = {"none": ({}, {}), "central_struts": ({"central_struts": 2.5}, {}),
+          "rear_bridles": ({}, {"rear_bridles": 0.97})}
+# The rear bridle group of the V3 bridle (kite_fem's br1-br4 on both sides; the lines of
+# kite_fem/struc_geometry_hanging_test.yaml, "bridle_connections").
+REAR_BRIDLES = [[92, 85], [91, 85], [90, 84], [89, 84], [126, 119], [125, 119], [124, 118],
+                [123, 118]]
 
 
 def surface_markers(campaign, case, positions, rng, noise_m):
@@ -75,13 +85,18 @@ def planted_campaign(folder: Path, plant: str, cases, candidates, noise_m: float
                      seed: int) -> Path:
     """Write the planted campaign (markers and campaign.toml) into ``folder``."""
     campaign = fitting.read_campaign(DATA / "campaign.toml")
-    generating = dataclasses.replace(campaign, tube_classes={
-        **campaign.tube_classes, "central_struts": ("strut3", "strut4")})
+    bending, rest_lengths = PLANTS[plant]
+    generating = dataclasses.replace(
+        campaign, tube_classes={**campaign.tube_classes, "central_struts": ("strut3", "strut4")},
+        line_sets={**campaign.line_sets, "rear_bridles": tuple(map(tuple, REAR_BRIDLES))})
     hand = fitting.read_model_file(ROOT / "results" / "v3_model.json", campaign)
-    truth = dataclasses.replace(hand, bending_class_factors=PLANTS[plant])
+    truth = dataclasses.replace(hand, bending_class_factors=bending, rest_length_factors={
+        **hand.rest_length_factors, **rest_lengths})
     solver = fitting.CaseSolver(generating)
     rng = np.random.default_rng(seed)
     text = (DATA / "campaign.toml").read_text()
+    if rest_lengths:  # the planted group is a line set of the planted campaign
+        text = text.replace("[line_sets]\n", f"[line_sets]\nrear_bridles = {REAR_BRIDLES}\n")
     for relative in ("kite_fem/initial.npz", "kite_fem/validation_data.csv"):
         text = text.replace(f'"{relative}"', json.dumps(os.path.relpath(DATA / relative,
                                                                         folder)))
