@@ -177,9 +177,30 @@ def test_noise_only_records_match_the_estimate_the_diagnosis_uses():
     expected = ft.estimate_noise(ft.load_measurements(DATA)) / floor - 1.0
     assert record["error_order_2"] == pytest.approx(expected, rel=1e-12)
     assert record["error_order_1"] != record["error_order_2"] != record["error_order_3"]
+    assert all(0.0 <= record[f"ceiling_order_{k}"] <= 1.0 for k in (1, 2, 3))
     summary = ft.noise_summary([record, dict(record, error_order_3=None)])
     assert summary["order_3"]["designs"] == 1 and summary["order_2"]["designs"] == 2
     assert all(0.0 <= row["within"] <= 1.0 for row in summary.values())
+    supported = record["ceiling_order_2"] >= 0.95
+    assert summary["order_2"]["supported"] == 2 * supported
+    assert (summary["order_2"]["within_supported"] is None) == (not supported)
+
+
+def test_the_sampling_ceiling_grows_with_the_points_a_design_has():
+    """White noise at a design's deflections: 24 points (three curves of eight) leave the
+    order-2 estimate outside 25 % of the realised noise often (15 windows of four points:
+    its relative scatter is about 1 / sqrt(2 x 15) ~ 0.18 before the windows' overlap);
+    600 points almost never."""
+    from fitting._study.noise import _Curve, sampling_ceiling
+
+    def curves(count, points):
+        return [_Curve(np.linspace(0.0, 0.1, points) + 0.01 * k, np.zeros(points))
+                for k in range(count)]
+
+    small = sampling_ceiling(curves(3, 8), order=2)
+    large = sampling_ceiling(curves(6, 100), order=2)
+    assert 0.5 < small < 0.95 < large
+    assert sampling_ceiling(curves(3, 3), order=2) is None  # too short for order 2
 
 
 def test_when_every_coordinate_is_flagged_only_the_undetermined_directions_are_held(
