@@ -54,8 +54,25 @@ SLOW_FILES = frozenset({
 })
 
 
+# The two workers take whole files (``--dist loadfile``), each next file as one finishes, in
+# collection order (``--no-loadscope-reorder``: xdist's default order, most tests first, put
+# the few-test files that compile the most at the very end, where one worker ran them alone).
+# These files run first, costliest first: seconds of one worker on an empty compilation
+# cache, profiled (compile and run) on the CI-sized machine. Only the order depends on them.
+COSTLIEST_FIRST = (
+    "test_sparse_kkt.py", "test_dynamics_time.py", "test_sweep.py", "test_user_effect.py",
+    "test_solver.py", "test_fitting.py", "test_experiments.py", "test_beam_references.py",
+    "test_dynamics_modes.py", "test_effects.py", "test_shape_diagnose.py",
+    "test_diagnose_effects.py", "test_gradients.py", "test_diagnose_controls.py",
+    "test_notebook.py", "test_dead_load_drive.py", "test_members.py",
+    "test_convergence_honesty.py", "test_hung_frame.py", "test_kite.py",
+)
+
+
 def pytest_collection_modifyitems(config, items):
     slow = pytest.mark.slow
     for item in items:
         if item.path.name in SLOW_FILES:
             item.add_marker(slow)
+    rank = {name: k for k, name in enumerate(COSTLIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: file order kept
