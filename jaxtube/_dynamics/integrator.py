@@ -61,11 +61,12 @@ from .._mechanics.energy import energy_terms_and_constraints
 from .._mechanics.kinematics import initial_state, spring_joints
 from .._mechanics.law_groups import law_groups
 from .._rotation import matmul3, rotation_vector, transpose3
-from .._solver.newton_kkt import NewtonKKT, solve_equilibrium
+from .._solver.newton_kkt import NewtonKKT
 from .._structure.structure import GROUND, Structure, StructureParameters
 from .inertia import MassProperties, mass_properties, maximal_coordinates, translational_mass
 from .loads import parameters_at
 from .modes import constraint_count_of, node_positions
+from .step_newton import solve_step
 from .step_system import (
     CENTROID,
     constrained_rates,
@@ -299,7 +300,7 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
     factors = factors if structure.segment_count else None
 
     def one_step(carry, index):
-        state, multipliers, motion = carry
+        (state, multipliers), past, motion = carry
         time = (index + 1.0) * h
         params_t = parameters_at(params, loads, support_motions, time)
         here = maximal_coordinates(structure, geometry, state)
@@ -320,8 +321,9 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
             point_mass=mass.point_mass,
             joint_rotation=motion.joint_rotation, joint_rate=motion.joint_rate,
             joint_damping=beta_k, mass_damping=damping.mass_proportional)
-        solved = solve_equilibrium(objective, state, (params_t, geometry, data), solver,
-                                   multipliers, hessian=hessian, constraint_factors=factors)
+        guess = _extrapolated((state, multipliers), *past)
+        solved = solve_step(objective, guess[0], (params_t, geometry, data), solver, guess[1],
+                            hessian, factors)
         there = maximal_coordinates(structure, geometry, solved.state)
         acceleration = 4.0 / h**2 * (there.centroid - data.centroid_predicted)
         psi = rotation_vector(matmul3(transpose3(here.frame), there.frame))
@@ -354,11 +356,20 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
                       potential_energy=jnp.sum(terms), line_length=_line_lengths(structure, own),
                       converged=solved.converged, iterations=solved.iterations,
                       result=solved.result, residual=solved.residual)
-        return (solved.state, solved.multipliers, new), record
+        return ((solved.state, solved.multipliers), ((state, multipliers), past[0]), new), record
 
-    _, record = jax.lax.scan(one_step, (state, multipliers, motion),
+    start = (state, multipliers)
+    _, record = jax.lax.scan(one_step, (start, (start, start), motion),
                              jnp.arange(steps, dtype=float))
     return History(**record)
+
+
+def _extrapolated(last, before, earlier):
+    """The quadratic extrapolation ``3 z_n - 3 z_{n-1} + z_{n-2}`` of the solver's state and
+    multipliers over the last three steps (PyTrees of the same structure): the first guess of
+    the next step's Newton iteration, off by ``O(h^3)`` of a smooth motion where the last
+    solution is off by ``O(h)`` (fewer Newton iterations; the solution does not depend on it)."""
+    return jax.tree.map(lambda a, b, c: 3.0 * (a - b) + c, last, before, earlier)
 
 
 def _line_lengths(structure: Structure, state: dict) -> Array:
