@@ -19,8 +19,9 @@ then the stationarity conditions of the incremental potential
 
 over the solver's state ``z`` under the structure's constraints (``x~ = x_n + h v_n + h^2/4
 a_n``, ``Psi~ = h W_n + h^2/4 A_n``): its gradient is ``grad E + M a_{n+1} + ...``, so each
-step is one call of the static Newton-KKT solver (the same constraints, warm-started from
-the last step; it must converge, and every step's report is kept), on the state extended
+step is one Newton-KKT minimisation (:mod:`.step_newton`: the static solver's stopping rule
+and codes, the same constraints, from the quadratic extrapolation of the last three steps;
+it must converge, and every step's report is kept), on the state extended
 by the segment centroids, with the Hessian assembled block by block and the constraints in
 factored form (:mod:`.step_system`). ``D`` is the damping's
 incremental potential, whose gradient is the damping force at ``t_{n+1}``: mass-proportional
@@ -263,10 +264,11 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
     ``support_motions`` (:class:`SupportMotion`), with ``damping`` (:class:`Damping`).
 
     Newmark's average acceleration on SO(3) with each step a Newton-KKT solve (module
-    docstring). Every step reports ``converged``; a step that fails is kept and reported,
-    never passed over (:func:`jaxtube.check_converged` names them). Differentiable in
-    ``params`` (and the loads) by the implicit function theorem per step. The model must
-    give every free unknown some mass. ``steps`` is static.
+    docstring; ``solver``'s tolerances and caps apply to each step). Every step reports
+    ``converged``; a step that fails is kept and reported, never passed over
+    (:func:`jaxtube.check_converged` names them). Differentiable in ``params`` (and the
+    loads) by the implicit function theorem per step. The model must give every free
+    unknown some mass. ``steps`` is static.
 
     Example::
 
