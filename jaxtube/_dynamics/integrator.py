@@ -19,8 +19,9 @@ then the stationarity conditions of the incremental potential
 
 over the solver's state ``z`` under the structure's constraints (``x~ = x_n + h v_n + h^2/4
 a_n``, ``Psi~ = h W_n + h^2/4 A_n``): its gradient is ``grad E + M a_{n+1} + ...``, so each
-step is one call of the static Newton-KKT solver (the same constraints, warm-started from
-the last step; it must converge, and every step's report is kept), on the state extended
+step is one Newton-KKT minimisation (:mod:`.step_newton`: the static solver's stopping rule
+and codes, the same constraints, from the quadratic extrapolation of the last three steps;
+it must converge, and every step's report is kept), on the state extended
 by the segment centroids, with the Hessian assembled block by block and the constraints in
 factored form (:mod:`.step_system`). ``D`` is the damping's
 incremental potential, whose gradient is the damping force at ``t_{n+1}``: mass-proportional
@@ -61,11 +62,12 @@ from .._mechanics.energy import energy_terms_and_constraints
 from .._mechanics.kinematics import initial_state, spring_joints
 from .._mechanics.law_groups import law_groups
 from .._rotation import matmul3, rotation_vector, transpose3
-from .._solver.newton_kkt import NewtonKKT, solve_equilibrium
+from .._solver.newton_kkt import NewtonKKT
 from .._structure.structure import GROUND, Structure, StructureParameters
 from .inertia import MassProperties, mass_properties, maximal_coordinates, translational_mass
 from .loads import parameters_at
 from .modes import constraint_count_of, node_positions
+from .step_newton import solve_step
 from .step_system import (
     CENTROID,
     constrained_rates,
@@ -262,10 +264,11 @@ def simulate_dynamics(structure: Structure, params: StructureParameters, time_st
     ``support_motions`` (:class:`SupportMotion`), with ``damping`` (:class:`Damping`).
 
     Newmark's average acceleration on SO(3) with each step a Newton-KKT solve (module
-    docstring). Every step reports ``converged``; a step that fails is kept and reported,
-    never passed over (:func:`jaxtube.check_converged` names them). Differentiable in
-    ``params`` (and the loads) by the implicit function theorem per step. The model must
-    give every free unknown some mass. ``steps`` is static.
+    docstring; ``solver``'s tolerances and caps apply to each step). Every step reports
+    ``converged``; a step that fails is kept and reported, never passed over
+    (:func:`jaxtube.check_converged` names them). Differentiable in ``params`` (and the
+    loads) by the implicit function theorem per step. The model must give every free
+    unknown some mass. ``steps`` is static.
 
     Example::
 
@@ -299,7 +302,7 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
     factors = factors if structure.segment_count else None
 
     def one_step(carry, index):
-        state, multipliers, motion = carry
+        (state, multipliers), past, motion = carry
         time = (index + 1.0) * h
         params_t = parameters_at(params, loads, support_motions, time)
         here = maximal_coordinates(structure, geometry, state)
@@ -320,8 +323,9 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
             point_mass=mass.point_mass,
             joint_rotation=motion.joint_rotation, joint_rate=motion.joint_rate,
             joint_damping=beta_k, mass_damping=damping.mass_proportional)
-        solved = solve_equilibrium(objective, state, (params_t, geometry, data), solver,
-                                   multipliers, hessian=hessian, constraint_factors=factors)
+        guess = _extrapolated((state, multipliers), *past)
+        solved = solve_step(objective, guess[0], (params_t, geometry, data), solver, guess[1],
+                            hessian, factors)
         there = maximal_coordinates(structure, geometry, solved.state)
         acceleration = 4.0 / h**2 * (there.centroid - data.centroid_predicted)
         psi = rotation_vector(matmul3(transpose3(here.frame), there.frame))
@@ -354,11 +358,20 @@ def _simulate(structure, params, time_step, steps, initial, loads, support_motio
                       potential_energy=jnp.sum(terms), line_length=_line_lengths(structure, own),
                       converged=solved.converged, iterations=solved.iterations,
                       result=solved.result, residual=solved.residual)
-        return (solved.state, solved.multipliers, new), record
+        return ((solved.state, solved.multipliers), ((state, multipliers), past[0]), new), record
 
-    _, record = jax.lax.scan(one_step, (state, multipliers, motion),
+    start = (state, multipliers)
+    _, record = jax.lax.scan(one_step, (start, (start, start), motion),
                              jnp.arange(steps, dtype=float))
     return History(**record)
+
+
+def _extrapolated(last, before, earlier):
+    """The quadratic extrapolation ``3 z_n - 3 z_{n-1} + z_{n-2}`` of the solver's state and
+    multipliers over the last three steps (PyTrees of the same structure): the first guess of
+    the next step's Newton iteration, off by ``O(h^3)`` of a smooth motion where the last
+    solution is off by ``O(h)`` (fewer Newton iterations; the solution does not depend on it)."""
+    return jax.tree.map(lambda a, b, c: 3.0 * (a - b) + c, last, before, earlier)
 
 
 def _line_lengths(structure: Structure, state: dict) -> Array:
