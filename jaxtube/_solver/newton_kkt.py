@@ -46,7 +46,10 @@ program (``experiments/bench_compile.py`` measures its size and compile time).
 Gradients through the solution use the implicit function theorem: at ``F(y*, lambda*,
 args) = 0`` (``F`` the KKT residual) the tangent is ``-K^{-1} dF/dargs . dargs``, with ``K``
 the KKT matrix. It is written as a ``jax.custom_jvp``; reverse mode follows by JAX's
-transposition of that linear map, so no while-loop is ever differentiated.
+transposition of that linear map, so no while-loop is ever differentiated. ``K`` is built from
+the Hessian and constraint Jacobian that the iteration evaluated at its last linearised
+iterate (the solution, where it converged) and returns beside the solution, so a gradient's
+program holds one copy of the Hessian, not two.
 
 The solve never raises inside traced code: it returns a :class:`EquilibriumResult` with a
 ``result`` code (:data:`RESULT_MESSAGES`), and callers turn codes into words.
@@ -145,7 +148,13 @@ def _kkt_at_solution(objective, hessian_fn, route, args, z, lam):
     Hessian and the constraint Jacobian with the floor regularisation ``MU_FLOOR``."""
     jacobian = (jax.jacrev(lambda zz: objective(zz, args)[1])(z) if route.needs_jacobian
                 else None)
-    hessian = _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
+    return _floor_kkt(route, _lagrangian_hessian(objective, hessian_fn, route, args, z, lam),
+                      jacobian)
+
+
+def _floor_kkt(route, hessian, jacobian):
+    """KKT matrix (route's form) of a Hessian and constraint Jacobian (``None`` on a route
+    that does not form it) with the floor regularisation ``MU_FLOOR``."""
     h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
     j_scale = route.jacobian_scale(hessian, jacobian)
     mu = MU_FLOOR * h_scale
@@ -204,14 +213,16 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             jacobian = jnp.zeros((0, n), dtype)
         return parts, c, part_grads, jacobian.T @ lam, jacobian
 
+    def lagrangian_hessian(z, lam):
+        return _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
+
     def merit(z, rho):
         terms, c = objective(z, args)
         return jnp.sum(terms) + rho * jnp.sum(jnp.abs(c))
 
-    def newton_step(z, lam, rho, e, c, grad_e, jacobian, skip):
-        """Hessian, regularised KKT solve: the :class:`PendingStep` from ``z`` (no solve
-        where ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
-        hessian = _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
+    def newton_step(z, lam, rho, e, c, grad_e, jacobian, hessian, skip):
+        """The regularised KKT solve: the :class:`PendingStep` from ``z`` (no solve where
+        ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
         finite = all_finite(hessian)
         # Curvature test with growing regularisation (inertia-free).
         h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
@@ -282,7 +293,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                 accepted)
 
     def body(carry):
-        z, lam, rho, step, _, _, res_g_last, res_c_last, trial = carry
+        z, lam, rho, step, _, _, res_g_last, res_c_last, trial, at_iterate = carry
         # The point linearised: the proposed full step, or the iterate itself.
         pending = trial.pending
         point = jnp.where(pending, z + trial.dz, z)
@@ -317,6 +328,11 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # the tangent stiffness, and a self-equilibrated problem with zero reactions still
         # has the internal and load terms it balances.
         linearised = ~refused
+        # The Hessian at the linearised iterate: for its Newton step, and, at the solution,
+        # for the implicit tangent (returned: the tangent's program needs no second copy).
+        hessian = unless(refused, lambda _: lagrangian_hessian(z, lam), at_iterate[0])
+        at_iterate = (hessian, jax.tree.map(lambda new, kept: jnp.where(refused, kept, new),
+                                            jacobian, at_iterate[1]))
         scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
         converged = (linearised & (res_g <= solver.rtol * scale + solver.atol)
                      & (res_c <= solver.constraint_tol))
@@ -325,7 +341,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # gradient).
         take_step = linearised & ~converged & finite_residual & (step < solver.max_steps)
         trial = unless(~take_step,
-                        lambda _: newton_step(z, lam, rho, e, c, grad_e, jacobian, ~take_step),
+                        lambda _: newton_step(z, lam, rho, e, c, grad_e, jacobian, hessian,
+                                              ~take_step),
                         no_trial)
         not_finite = (linearised & ~finite_residual) | (take_step & ~trial.finite)
         stop = converged | not_finite | failed_search
@@ -334,7 +351,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         trial = eqx.tree_at(lambda t: t.pending, trial, trial.pending & ~stop)
         return (z, lam, rho, step, stop, code.astype(jnp.int32),
                 jnp.where(linearised, res_g, res_g_last),
-                jnp.where(linearised, res_c, res_c_last), trial)
+                jnp.where(linearised, res_c, res_c_last), trial, at_iterate)
 
     def cond(carry):
         step, stop, trial = carry[3], carry[4], carry[8]
@@ -344,18 +361,20 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     # line search's correction speculatively, and KLU stops the program on a singular
     # matrix).
     identity = route.identity_factors()
-    no_trial = jax.tree.map(
-        lambda s: jnp.zeros(s.shape, s.dtype),
-        jax.eval_shape(lambda: newton_step(z0, lam0, jnp.zeros((), dtype), jnp.zeros((), dtype),
-                                           jnp.zeros((m,), dtype), z0,
-                                           jnp.zeros((m, n), dtype) if route.needs_jacobian
-                                           else None, jnp.zeros((), bool))))
+    zeros = lambda tree: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), tree)  # noqa: E731
+    no_hessian = zeros(jax.eval_shape(lagrangian_hessian, z0, lam0))
+    no_jacobian = jnp.zeros((m, n), dtype) if route.needs_jacobian else None
+    no_trial = zeros(jax.eval_shape(
+        lambda: newton_step(z0, lam0, jnp.zeros((), dtype), jnp.zeros((), dtype),
+                            jnp.zeros((m,), dtype), z0, no_jacobian, no_hessian,
+                            jnp.zeros((), bool))))
     no_trial = eqx.tree_at(lambda t: t.factors, no_trial, identity)
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
             jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype),
-            no_trial)
-    z, lam, _, steps, _, code, res_g, res_c, _ = jax.lax.while_loop(cond, body, init)
-    return z, lam, (code == 0, steps, code, res_g, res_c)
+            no_trial, (no_hessian, no_jacobian))
+    z, lam, _, steps, _, code, res_g, res_c, _, at_iterate = jax.lax.while_loop(cond, body,
+                                                                                init)
+    return z, lam, (code == 0, steps, code, res_g, res_c), at_iterate
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
@@ -381,22 +400,25 @@ def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     # The solve itself as the primitive it is (not re-traced under the tangents'
     # transformations: under ``jacfwd`` the Newton loops stay unbatched over the tangent
     # basis), then the tangent by the implicit function theorem.
-    z, lam, stats = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
+    z, lam, stats, at_solution = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
-    # The KKT matrix at the solution, solved on the route of the Newton iterations (chosen
-    # again here, at trace time, by the same static rule).
+    # The KKT matrix at the solution from the Hessian and constraint Jacobian of the solve's
+    # last linearised iterate (the solution, where it converged), solved on the route of the
+    # Newton iterations (chosen again here, at trace time, by the same static rule).
     route = _kkt_route(hessian_fn, solver, args, z0, lam0)
-    kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
+    kkt = _floor_kkt(route, *at_solution)
     solution_dot = -route.solve(kkt, residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
         for s in stats
     )
-    return (z, lam, stats), (solution_dot[:n], solution_dot[n:], stats_dot)
+    at_solution_dot = jax.tree.map(jnp.zeros_like, at_solution)
+    return ((z, lam, stats, at_solution),
+            (solution_dot[:n], solution_dot[n:], stats_dot, at_solution_dot))
 
 
 def solve_equilibrium(
@@ -466,7 +488,7 @@ def solve_equilibrium(
 
     m = jax.eval_shape(flat_objective, z0, args)[1].shape[0]
     lam0 = jnp.zeros((m,), z0.dtype) if initial_multipliers is None else initial_multipliers
-    z, lam, (converged, steps, code, res_g, res_c) = _equilibrium(
+    z, lam, (converged, steps, code, res_g, res_c), _ = _equilibrium(
         flat_objective, flat_hessian, solver, args, z0, lam0
     )
     return EquilibriumResult(
