@@ -47,6 +47,7 @@ import numpy as np  # noqa: E402
 
 import fitting as ft  # noqa: E402
 import jaxtube as jt  # noqa: E402
+from experiments.profile_batch_pieces import median_seconds  # noqa: E402
 from experiments.tube_kite import build_kite  # noqa: E402
 from fitting._calibrate import problem as calibrate  # noqa: E402
 
@@ -140,16 +141,6 @@ def compile_once(fn, args):
     return compiled, lowered_at - start, done - lowered_at, ops, lines, instructions
 
 
-def warm_seconds(compiled, args, repeats: int) -> float:
-    jax.block_until_ready(compiled(*args))
-    walls = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        jax.block_until_ready(compiled(*args))
-        walls.append(time.perf_counter() - start)
-    return float(np.median(walls))
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="1 compile each, no kite")
@@ -176,7 +167,7 @@ def main(argv=None) -> int:
         compiled = runs[-1][0]
         lower, seconds = (float(np.median([r[k] for r in runs])) for k in (1, 2))
         ops, count, instructions = runs[-1][3:]
-        warm = warm_seconds(compiled, fn_args, 5 if name in ("fit", "kite") else 20)
+        warm = median_seconds(compiled, *fn_args, repeats=5 if name in ("fit", "kite") else 20)
         steps = steps_of(compiled(*fn_args))
         line = (f"{name:9s} | {lower:7.2f} | {seconds:9.2f} | {ops:13d} | {count:6d} | "
                 f"{instructions:9d} | {warm * 1e3:7.2f} | {int(np.sum(steps)):12d} | "
