@@ -153,6 +153,17 @@ class AugmentedSparseKKT(SparseKKT):
             jnp.full((self.m,), -delta, dtype)])
         return jax.ops.segment_sum(contributions, self.slot, self.nnz)
 
+    def identity_factors(self):
+        """KKT values of a nonsingular matrix on the pattern: ones on the diagonal of the
+        ``z`` and ``lambda`` blocks and on ``G``'s diagonal (``[[0, I], [I, 0]]`` over
+        ``(dw, nu)``: the pattern has no ``dw`` or ``nu`` diagonal), for what a step not
+        taken carries (:meth:`SparseKKT.identity_factors`)."""
+        n, p = self.n, self.p
+        outer = (self.Ai == self.Aj) & ((self.Ai < n) | (self.Ai >= n + 2 * p))
+        swap = (np.abs(self.Ai - self.Aj) == p) & (np.minimum(self.Ai, self.Aj) >= n) & (
+            np.maximum(self.Ai, self.Aj) < n + 2 * p)
+        return jnp.asarray(outer | swap, dtype=jnp.float64)
+
     def solve(self, kkt, rhs):
         """``x [n + m]`` of the plain KKT system, from the augmented one (zeros on the tree
         rows, the auxiliary unknowns dropped)."""

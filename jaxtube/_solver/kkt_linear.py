@@ -157,6 +157,12 @@ class DenseKKT:
         """LU factors of the KKT matrix (LAPACK ``getrf``), for :meth:`solve_factored`."""
         return lu_factor(kkt)
 
+    def identity_factors(self):
+        """:meth:`factor`'s output for the identity matrix (no factorisation): what a step
+        not taken carries, so that a solve XLA executes speculatively is well posed."""
+        size = self.n + self.m
+        return jnp.eye(size), jnp.arange(size, dtype=jnp.int32)
+
     @staticmethod
     def solve_factored(factors, rhs):
         """``x`` with ``KKT x = rhs`` from :meth:`factor`'s LU factors (no refactorisation)."""
@@ -263,6 +269,12 @@ class SparseKKT:
     def solve_factored(self, factors, rhs):
         """``x`` with ``KKT x = rhs`` from :meth:`factor`'s output."""
         return self.solve(factors, rhs)
+
+    def identity_factors(self):
+        """KKT values of the identity on the pattern (it holds the whole diagonal): what a
+        step not taken carries, so that a solve XLA executes speculatively does not stop the
+        program on a singular matrix (KLU)."""
+        return jnp.asarray(self.Ai == self.Aj, dtype=jnp.float64)
 
     def solve(self, kkt, rhs):
         """``x`` with ``KKT x = rhs`` for KKT values ``[nnz]`` and ``rhs [n + m]``.

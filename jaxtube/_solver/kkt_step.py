@@ -1,5 +1,6 @@
 """One regularised Newton-KKT step and its second-order correction, for the iteration of
-:mod:`jaxtube._solver.newton_kkt`.
+:mod:`jaxtube._solver.newton_kkt`; the proposed step it carries to the next pass
+(:class:`PendingStep`) and the skippable section it runs in (:func:`unless`).
 
 **The regularised step.** With Hessian ``H``, constraint Jacobian ``J``, energy gradient
 ``g`` and constraints ``c``, the step ``dz`` and the new multipliers solve::
@@ -38,8 +39,10 @@ such problems take the same iterates as without it.
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax import Array
 
 
 def all_finite(tree):
@@ -88,3 +91,52 @@ def second_order_correction(route, factors, c, jacobian_times_step, dz, c_full):
     rhs = jnp.concatenate([jnp.zeros((n,), dz.dtype), -curvature_violation])
     correction = route.solve_factored(factors, rhs)[:n]
     return jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
+
+
+def unless(skip, step, skipped):
+    """``skipped`` if ``skip`` else ``step(None)``, written as a while-loop of at most one
+    pass rather than ``lax.cond``.
+
+    Under ``vmap`` a ``lax.cond`` with a batched predicate becomes a select that broadcasts
+    every operand of both branches, constants included; klujax's solve refuses a batched
+    sparsity pattern (``Ai cannot be vectorized``). A while-loop keeps its constants
+    unbatched, and under ``vmap`` runs the step once for the members that need it, masked.
+
+    XLA may still execute the step when ``skip`` is set and discard its result (its CPU
+    compiler turns such a loop into straight-line code: measured with jax 0.10.2, the line
+    search ran its trials on every pass of the iteration). So a ``step`` whose own loops must
+    not run when skipped starts them finished (it is given ``skip``), and every solve it may
+    execute is well posed (a step not taken carries the identity's factors).
+    """
+
+    def body(_):
+        return jnp.ones((), bool), step(None)
+
+    return jax.lax.while_loop(lambda carry: ~carry[0] & ~skip, body,
+                              (jnp.zeros((), bool), skipped))[1]
+
+
+class PendingStep(eqx.Module):
+    """A Newton step proposed from the iterate ``z`` and not yet tested: the next pass of
+    the iteration linearises at ``z + dz`` (with ``lam_new``), which serves both the
+    full-step test and, when the step is taken, the next Newton step (one linearisation in
+    the program, not a separate gradient for the test).
+
+    Attributes:
+        pending: a step is proposed. dz: ``[n]`` step (zeros when none). lam_new: ``[m]``.
+        rho: penalty of the l1 merit. merit: its value at ``z``. slope: its directional
+            derivative along ``dz``. c: constraints at ``z`` ``[m]``. jacobian_step: ``J dz``
+            ``[m]`` (routes that form ``J``; zeros otherwise). factors: the step's KKT
+            factors (second-order correction). finite: Hessian and step finite.
+    """
+
+    pending: Array
+    dz: Array
+    lam_new: Array
+    rho: Array
+    merit: Array
+    slope: Array
+    c: Array
+    jacobian_step: Array
+    factors: object
+    finite: Array

@@ -37,10 +37,19 @@ Globalisation:
   corrected full step ``z + dz + s`` (``alpha = 1``; Nocedal & Wright 2006, Algorithm 18.3),
   then the halvings ``alpha = 1/2, 1/4, ...`` (without a correction, the halvings at once).
 
+Each pass of the iteration linearises once: at the proposed full step ``z + dz`` (the
+gradients and constraints that decide whether it is taken are those the next Newton step
+needs), or, after a line search, at the point it found; the regularisation's trials are one
+loop. So the energy's gradient and the KKT factorisation each appear once in the compiled
+program (``experiments/bench_compile.py`` measures its size and compile time).
+
 Gradients through the solution use the implicit function theorem: at ``F(y*, lambda*,
 args) = 0`` (``F`` the KKT residual) the tangent is ``-K^{-1} dF/dargs . dargs``, with ``K``
 the KKT matrix. It is written as a ``jax.custom_jvp``; reverse mode follows by JAX's
-transposition of that linear map, so no while-loop is ever differentiated.
+transposition of that linear map, so no while-loop is ever differentiated. ``K`` is built from
+the Hessian and constraint Jacobian that the iteration evaluated at its last linearised
+iterate (the solution, where it converged) and returns beside the solution, so a gradient's
+program holds one copy of the Hessian, not two.
 
 The solve never raises inside traced code: it returns a :class:`EquilibriumResult` with a
 ``result`` code (:data:`RESULT_MESSAGES`), and callers turn codes into words.
@@ -59,7 +68,14 @@ from jax.flatten_util import ravel_pytree
 
 from .kkt_augmented import AugmentedSparseKKT
 from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
-from .kkt_step import all_finite, first_trial_exponent, regularised_step, second_order_correction
+from .kkt_step import (
+    PendingStep,
+    all_finite,
+    first_trial_exponent,
+    regularised_step,
+    second_order_correction,
+    unless,
+)
 from .results import RESULTS, result_messages
 
 RESULT_MESSAGES = result_messages(RESULTS)
@@ -132,7 +148,13 @@ def _kkt_at_solution(objective, hessian_fn, route, args, z, lam):
     Hessian and the constraint Jacobian with the floor regularisation ``MU_FLOOR``."""
     jacobian = (jax.jacrev(lambda zz: objective(zz, args)[1])(z) if route.needs_jacobian
                 else None)
-    hessian = _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
+    return _floor_kkt(route, _lagrangian_hessian(objective, hessian_fn, route, args, z, lam),
+                      jacobian)
+
+
+def _floor_kkt(route, hessian, jacobian):
+    """KKT matrix (route's form) of a Hessian and constraint Jacobian (``None`` on a route
+    that does not form it) with the floor regularisation ``MU_FLOOR``."""
     h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
     j_scale = route.jacobian_scale(hessian, jacobian)
     mu = MU_FLOOR * h_scale
@@ -161,24 +183,6 @@ def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
     return DenseKKT(n, m)
 
 
-def _unless(skip, step, skipped):
-    """``skipped`` if ``skip`` else ``step(None)``, written as a while-loop of at most one
-    pass rather than ``lax.cond``.
-
-    Under ``vmap`` a ``lax.cond`` with a batched predicate becomes a select that broadcasts
-    every operand of both branches, constants included; klujax's solve refuses a batched
-    sparsity pattern (``Ai cannot be vectorized``). A while-loop keeps its constants
-    unbatched, skips the step when not batched (the converged last pass of a solve needs no
-    Hessian), and under ``vmap`` runs it once for the members that need it, masked.
-    """
-
-    def body(_):
-        return jnp.ones((), bool), step(None)
-
-    return jax.lax.while_loop(lambda carry: ~carry[0] & ~skip, body,
-                              (jnp.zeros((), bool), skipped))[1]
-
-
 def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     n = z0.shape[0]
     m = lam0.shape[0]
@@ -186,166 +190,191 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     dtype = z0.dtype
     route = _kkt_route(hessian_fn, solver, args, z0, lam0)
 
-    def linearise(z):
-        """``(terms [k], c [m], part_grads [k, n], jacobian [m, n])``: each energy term's
-        gradient (``k`` reverse passes) and the constraint Jacobian (``m`` reverse passes of
-        the constraints alone). Two linearisations rather than one pulled back along all
-        ``k + m`` cotangents: there every constraint's cotangent also travelled back through
-        the energy (664 lines, every joint law), 22 ms against 7 ms per Newton step on the
-        V3 kite (2026-12-02, idle 2-core CPU)."""
+    def constraints_of(z):
+        return objective(z, args)[1]
+
+    def linearise(z, lam):
+        """``(terms [k], c [m], part_grads [k, n], J^T lam [n], jacobian [m, n] or None)``:
+        each energy term's gradient (``k`` reverse passes) and, for a route that needs it,
+        the constraint Jacobian (``m`` reverse passes of the constraints alone), else
+        ``J^T lam`` (one reverse pass). Two linearisations rather than one pulled back
+        along all ``k + m`` cotangents: there every constraint's cotangent also travelled
+        back through the energy (664 lines, every joint law), 22 ms against 7 ms per Newton
+        step on the V3 kite (2026-12-02, idle 2-core CPU)."""
         parts, part_pullback = jax.vjp(lambda zz: objective(zz, args)[0], z)
         (part_grads,) = jax.vmap(part_pullback)(jnp.eye(k, dtype=dtype))
-        c, constraint_pullback = jax.vjp(lambda zz: objective(zz, args)[1], z)
+        c, constraint_pullback = jax.vjp(constraints_of, z)
+        if not route.needs_jacobian:
+            (jt_lam,) = constraint_pullback(lam)
+            return parts, c, part_grads, jt_lam, None
         if m:
             (jacobian,) = jax.vmap(constraint_pullback)(jnp.eye(m, dtype=dtype))
         else:
             jacobian = jnp.zeros((0, n), dtype)
-        return parts, c, part_grads, jacobian
-
-    def linearise_matrix_free(z, lam):
-        """``(terms, c, part_grads, J^T lam, dz -> J dz)``: what a route that does not
-        need the constraint Jacobian's matrix uses (one reverse pass with ``lam``; ``J dz`` by
-        one forward pass when asked), instead of its ``m`` reverse passes."""
-        parts, part_pullback = jax.vjp(lambda zz: objective(zz, args)[0], z)
-        (part_grads,) = jax.vmap(part_pullback)(jnp.eye(k, dtype=dtype))
-        constraints_of = lambda zz: objective(zz, args)[1]  # noqa: E731
-        c, constraint_pullback = jax.vjp(constraints_of, z)
-        (jt_lam,) = constraint_pullback(lam)
-        return parts, c, part_grads, jt_lam, lambda v: jax.jvp(constraints_of, (z,), (v,))[1]
-
-    def lagrangian_and_parts(z, lam):
-        terms, c = objective(z, args)
-        e = jnp.sum(terms)
-        return e + jnp.dot(lam, c), (e, c)
-
-    def gradient_and_parts(z, lam):
-        (_, (e, c)), grad = jax.value_and_grad(lagrangian_and_parts, has_aux=True)(z, lam)
-        return grad, e, c
-
-    def merit(z, rho):
-        e, c = lagrangian_and_parts(z, jnp.zeros_like(lam0))[1]
-        return e + rho * jnp.sum(jnp.abs(c))
+        return parts, c, part_grads, jacobian.T @ lam, jacobian
 
     def lagrangian_hessian(z, lam):
         return _lagrangian_hessian(objective, hessian_fn, route, args, z, lam)
 
-    def body(carry):
-        z, lam, rho, step, _, _, _, _ = carry
-        # The gradient of each energy term and the constraint Jacobian (or, for a route
-        # that does not need its matrix, J^T lam and the map dz -> J dz).
-        if route.needs_jacobian:
-            parts, c, part_grads, jacobian = linearise(z)
-            jt_lam = jacobian.T @ lam
+    def merit(z, rho):
+        terms, c = objective(z, args)
+        return jnp.sum(terms) + rho * jnp.sum(jnp.abs(c))
 
-            def jacobian_times(v):
-                return jacobian @ v
+    def newton_step(z, lam, rho, e, c, grad_e, jacobian, hessian, skip):
+        """The regularised KKT solve: the :class:`PendingStep` from ``z`` (no solve where
+        ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
+        finite = all_finite(hessian)
+        # Curvature test with growing regularisation (inertia-free).
+        h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
+        j_scale = route.jacobian_scale(hessian, jacobian)
+
+        def solve_with(mu):
+            return regularised_step(route, hessian, jacobian, grad_e, c, lam, mu,
+                                    h_scale, j_scale)
+
+        # One loop whose first pass is the floor regularisation, then 1e-8 h, growing
+        # tenfold: the factorisation is compiled once (a first solve before the loop
+        # would be a second copy of it in the program).
+        def reg_cond(rc):
+            _, ok, _, tries, _ = rc
+            return (~ok) & (tries < solver.max_regularisations)
+
+        def reg_body(rc):
+            _, _, _, tries, mu = rc
+            mu = jnp.where(tries < 0, MU_FLOOR * h_scale,
+                           jnp.where(tries == 0, 1e-8 * h_scale, 10.0 * mu))
+            sol, ok, factors = solve_with(mu)
+            return sol, ok, factors, tries + 1, mu
+
+        unsolved = jnp.zeros((n + m,), dtype)
+        sol, _, factors, _, _ = jax.lax.while_loop(
+            reg_cond, reg_body,
+            (unsolved, skip, identity, jnp.full((), -1, jnp.int32), jnp.zeros((), dtype)))
+        dz, lam_new = sol[:n], sol[n:]
+        rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
+        violation = jnp.sum(jnp.abs(c))
+        return PendingStep(
+            pending=jnp.ones((), bool), dz=dz, lam_new=lam_new, rho=rho_new,
+            merit=e + rho_new * violation, slope=grad_e @ dz - rho_new * violation, c=c,
+            jacobian_step=(jacobian @ dz if route.needs_jacobian else jnp.zeros((m,), dtype)),
+            factors=factors, finite=finite & jnp.all(jnp.isfinite(dz)))
+
+    def line_search(z, lam, trial, c_full, skip):
+        """After a refused full step: ``(z + alpha dz + alpha^2 s, lam + alpha (lam_new -
+        lam), accepted)`` along the second-order correction ``s`` of curved constraints
+        (kkt_step's docstring; ``s = 0`` without them), ``alpha = 1`` (where ``s != 0``),
+        then ``1/2, 1/4, ...`` until the Armijo test on the merit passes (no trial where
+        ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
+        dz = trial.dz
+        if m == 0:
+            correction = jnp.zeros_like(dz)
         else:
-            parts, c, part_grads, jt_lam, jacobian_times = linearise_matrix_free(z, lam)
-            jacobian = None
+            jacobian_step = (trial.jacobian_step if route.needs_jacobian
+                             else jax.jvp(constraints_of, (z,), (dz,))[1])
+            correction = second_order_correction(route, trial.factors, trial.c,
+                                                 jacobian_step, dz, c_full)
+
+        def ls_cond(lc):
+            _, accepted, exponent = lc
+            return (~accepted) & (exponent < solver.max_backtracks)
+
+        def ls_body(lc):
+            _, _, exponent = lc
+            exponent = exponent + 1
+            alpha = 0.5 ** exponent.astype(dtype)
+            accepted = (merit(z + alpha * dz + alpha**2 * correction, trial.rho)
+                        <= trial.merit + 1e-4 * alpha * trial.slope)
+            return alpha, accepted, exponent
+
+        alpha, accepted, _ = jax.lax.while_loop(
+            ls_cond, ls_body,
+            (jnp.ones((), dtype), skip, first_trial_exponent(correction) - 1))
+        return (z + alpha * dz + alpha**2 * correction, lam + alpha * (trial.lam_new - lam),
+                accepted)
+
+    def body(carry):
+        z, lam, rho, step, _, _, res_g_last, res_c_last, trial, at_iterate = carry
+        # The point linearised: the proposed full step, or the iterate itself.
+        pending = trial.pending
+        point = jnp.where(pending, z + trial.dz, z)
+        lam_point = jnp.where(pending, trial.lam_new, lam)
+        parts, c, part_grads, jt_lam, jacobian = linearise(point, lam_point)
         grad_e = jnp.sum(part_grads, axis=0)
         e = jnp.sum(parts)
-        grad_l = grad_e + jt_lam
-        res_g = jnp.max(jnp.abs(grad_l))
+        res_g = jnp.max(jnp.abs(grad_e + jt_lam))
         res_c = jnp.max(jnp.abs(c), initial=0.0)
-        # The scale of the stopping rule: the largest generalised force of any one energy
-        # term (internal springs, applied loads, ...) or of the reactions J^T lambda. It
-        # does not involve the tangent stiffness, and a self-equilibrated problem with zero
-        # reactions still has the internal and load terms it balances.
-        scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
-        converged = (res_g <= solver.rtol * scale + solver.atol) & (res_c <= solver.constraint_tol)
-        finite_residual = jnp.isfinite(res_g) & jnp.isfinite(res_c)
 
-        def newton_step(_):
-            """Hessian, regularised KKT solve and line search (skipped once converged:
-            the convergence test needs only the gradient)."""
-            hessian = lagrangian_hessian(z, lam)
-            finite = all_finite(hessian)
-            # Curvature test with growing regularisation (inertia-free).
-            h_scale = jnp.maximum(jnp.max(jnp.abs(route.hessian_diagonal(hessian))), 1e-300)
-            j_scale = route.jacobian_scale(hessian, jacobian)
-
-            def solve_with(mu):
-                return regularised_step(route, hessian, jacobian, grad_e, c, lam, mu,
-                                        h_scale, j_scale)
-
-            def reg_cond(rc):
-                _, ok, _, tries, _ = rc
-                return (~ok) & (tries < solver.max_regularisations)
-
-            def reg_body(rc):
-                _, _, _, tries, mu = rc
-                mu = jnp.where(mu == 0.0, 1e-8 * h_scale, 10.0 * mu)
-                sol, ok, factors = solve_with(mu)
-                return sol, ok, factors, tries + 1, mu
-
-            sol0, ok0, factors0 = solve_with(MU_FLOOR * h_scale)
-            sol, _, factors, _, _ = jax.lax.while_loop(
-                reg_cond, reg_body,
-                (sol0, ok0, factors0, jnp.zeros((), jnp.int32), jnp.zeros((), z.dtype)))
-            dz, lam_new = sol[:n], sol[n:]
-
-            rho_new = jnp.maximum(rho, 2.0 * jnp.max(jnp.abs(lam_new), initial=0.0) + 1e-12)
-            phi0 = e + rho_new * jnp.sum(jnp.abs(c))
-            slope = grad_e @ dz - rho_new * jnp.sum(jnp.abs(c))
-            full_grad, full_e, full_c = gradient_and_parts(z + dz, lam_new)
-            full_g = jnp.max(jnp.abs(full_grad))
-            full_cn = jnp.max(jnp.abs(full_c), initial=0.0)
-            full_ok = (full_g <= 0.5 * res_g) & (full_cn <= jnp.maximum(0.5 * res_c,
+        # The proposed step: taken in full where it halves the KKT residual (no Maratos
+        # effect or round-off stall near the solution) or passes the Armijo test on the
+        # merit; otherwise the line search from z.
+        full_ok = (res_g <= 0.5 * res_g_last) & (res_c <= jnp.maximum(0.5 * res_c_last,
                                                                       solver.constraint_tol))
-            armijo_full = full_e + rho_new * jnp.sum(jnp.abs(full_c)) <= phi0 + 1e-4 * slope
+        armijo_full = (e + trial.rho * jnp.sum(jnp.abs(c))
+                       <= trial.merit + 1e-4 * trial.slope)
+        full = pending & (full_ok | armijo_full)
+        refused = pending & ~full
+        z_searched, lam_searched, searched = unless(
+            ~refused, lambda _: line_search(z, lam, trial, c, ~refused),
+            (z, lam, jnp.ones((), bool)))
+        failed_search = refused & ~searched
+        z = jnp.where(full, point, jnp.where(refused & searched, z_searched, z))
+        lam = jnp.where(full, lam_point, jnp.where(refused & searched, lam_searched, lam))
+        rho = jnp.where(pending, trial.rho, rho)
+        step = step + (full | (refused & searched)).astype(jnp.int32)
 
-            full_accepted = full_ok | armijo_full
-            # Refused full step: backtrack along z + alpha dz + alpha^2 s, s the second-order
-            # correction of curved constraints (kkt_step's docstring; s = 0 without them).
-            correction = (jnp.zeros_like(dz) if m == 0 else _unless(
-                full_accepted,
-                lambda _: second_order_correction(route, factors, c, jacobian_times(dz), dz,
-                                                  full_c),
-                jnp.zeros_like(dz)))
-
-            first = first_trial_exponent(correction)
-
-            def ls_cond(lc):
-                alpha, accepted, exponent = lc
-                return (~accepted) & (exponent < solver.max_backtracks)
-
-            def ls_body(lc):
-                _, _, exponent = lc
-                exponent = exponent + 1
-                alpha = 0.5 ** exponent.astype(z.dtype)
-                accepted = (merit(z + alpha * dz + alpha**2 * correction, rho_new)
-                            <= phi0 + 1e-4 * alpha * slope)
-                return alpha, accepted, exponent
-
-            alpha, accepted, _ = jax.lax.while_loop(
-                ls_cond, ls_body, (jnp.ones((), z.dtype), full_accepted, first - 1))
-            finite = finite & jnp.all(jnp.isfinite(dz))
-            # (correction is zero when the full step was accepted)
-            z_new = z + alpha * dz + alpha**2 * correction
-            return z_new, lam + alpha * (lam_new - lam), rho_new, accepted, finite
-
-        def stay(_):
-            return z, lam, rho, jnp.ones((), bool), jnp.ones((), bool)
-
-        z_try, lam_try, rho_new, accepted, finite_step = _unless(
-            converged | ~finite_residual, newton_step, stay(None))
-        finite = finite_residual & finite_step
-        stop = converged | ~finite | ~accepted
-        code = jnp.where(converged, 0, jnp.where(~finite, 3, jnp.where(~accepted, 2, 1)))
-        code = code.astype(jnp.int32)
-        z_next = jnp.where(stop, z, z_try)
-        lam_next = jnp.where(stop, lam, lam_try)
-        return (z_next, lam_next, rho_new, step + jnp.where(stop, 0, 1).astype(jnp.int32), stop,
-                code, res_g, res_c)
+        # At a linearised iterate (not one the line search just found): the stopping rule.
+        # Its scale: the largest generalised force of any one energy term (internal
+        # springs, applied loads, ...) or of the reactions J^T lambda. It does not involve
+        # the tangent stiffness, and a self-equilibrated problem with zero reactions still
+        # has the internal and load terms it balances.
+        linearised = ~refused
+        # The Hessian at the linearised iterate: for its Newton step, and, at the solution,
+        # for the implicit tangent (returned: the tangent's program needs no second copy).
+        hessian = unless(refused, lambda _: lagrangian_hessian(z, lam), at_iterate[0])
+        at_iterate = (hessian, jax.tree.map(lambda new, kept: jnp.where(refused, kept, new),
+                                            jacobian, at_iterate[1]))
+        scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
+        converged = (linearised & (res_g <= solver.rtol * scale + solver.atol)
+                     & (res_c <= solver.constraint_tol))
+        finite_residual = jnp.isfinite(res_g) & jnp.isfinite(res_c)
+        # The next step (skipped once converged: the convergence test needs only the
+        # gradient).
+        take_step = linearised & ~converged & finite_residual & (step < solver.max_steps)
+        trial = unless(~take_step,
+                        lambda _: newton_step(z, lam, rho, e, c, grad_e, jacobian, hessian,
+                                              ~take_step),
+                        no_trial)
+        not_finite = (linearised & ~finite_residual) | (take_step & ~trial.finite)
+        stop = converged | not_finite | failed_search
+        code = jnp.where(converged, 0, jnp.where(not_finite, 3,
+                                                 jnp.where(failed_search, 2, 1)))
+        trial = eqx.tree_at(lambda t: t.pending, trial, trial.pending & ~stop)
+        return (z, lam, rho, step, stop, code.astype(jnp.int32),
+                jnp.where(linearised, res_g, res_g_last),
+                jnp.where(linearised, res_c, res_c_last), trial, at_iterate)
 
     def cond(carry):
-        _, _, _, step, stop, _, _, _ = carry
-        return (~stop) & (step < solver.max_steps)
+        step, stop, trial = carry[3], carry[4], carry[8]
+        return (~stop) & ((step < solver.max_steps) | trial.pending)
 
+    # What a step not taken carries: zeros, and the identity's factors (XLA may execute the
+    # line search's correction speculatively, and KLU stops the program on a singular
+    # matrix).
+    identity = route.identity_factors()
+    zeros = lambda tree: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), tree)  # noqa: E731
+    no_hessian = zeros(jax.eval_shape(lagrangian_hessian, z0, lam0))
+    no_jacobian = jnp.zeros((m, n), dtype) if route.needs_jacobian else None
+    no_trial = zeros(jax.eval_shape(
+        lambda: newton_step(z0, lam0, jnp.zeros((), dtype), jnp.zeros((), dtype),
+                            jnp.zeros((m,), dtype), z0, no_jacobian, no_hessian,
+                            jnp.zeros((), bool))))
+    no_trial = eqx.tree_at(lambda t: t.factors, no_trial, identity)
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
-            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype))
-    z, lam, _, steps, _, code, res_g, res_c = jax.lax.while_loop(cond, body, init)
-    return z, lam, (code == 0, steps, code, res_g, res_c)
+            jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype),
+            no_trial, (no_hessian, no_jacobian))
+    z, lam, _, steps, _, code, res_g, res_c, _, at_iterate = jax.lax.while_loop(cond, body,
+                                                                                init)
+    return z, lam, (code == 0, steps, code, res_g, res_c), at_iterate
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
@@ -371,22 +400,25 @@ def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     # The solve itself as the primitive it is (not re-traced under the tangents'
     # transformations: under ``jacfwd`` the Newton loops stay unbatched over the tangent
     # basis), then the tangent by the implicit function theorem.
-    z, lam, stats = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
+    z, lam, stats, at_solution = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
     n = z.shape[0]
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
-    # The KKT matrix at the solution, solved on the route of the Newton iterations (chosen
-    # again here, at trace time, by the same static rule).
+    # The KKT matrix at the solution from the Hessian and constraint Jacobian of the solve's
+    # last linearised iterate (the solution, where it converged), solved on the route of the
+    # Newton iterations (chosen again here, at trace time, by the same static rule).
     route = _kkt_route(hessian_fn, solver, args, z0, lam0)
-    kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
+    kkt = _floor_kkt(route, *at_solution)
     solution_dot = -route.solve(kkt, residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
         for s in stats
     )
-    return (z, lam, stats), (solution_dot[:n], solution_dot[n:], stats_dot)
+    at_solution_dot = jax.tree.map(jnp.zeros_like, at_solution)
+    return ((z, lam, stats, at_solution),
+            (solution_dot[:n], solution_dot[n:], stats_dot, at_solution_dot))
 
 
 def solve_equilibrium(
@@ -456,7 +488,7 @@ def solve_equilibrium(
 
     m = jax.eval_shape(flat_objective, z0, args)[1].shape[0]
     lam0 = jnp.zeros((m,), z0.dtype) if initial_multipliers is None else initial_multipliers
-    z, lam, (converged, steps, code, res_g, res_c) = _equilibrium(
+    z, lam, (converged, steps, code, res_g, res_c), _ = _equilibrium(
         flat_objective, flat_hessian, solver, args, z0, lam0
     )
     return EquilibriumResult(
