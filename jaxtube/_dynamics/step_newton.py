@@ -42,7 +42,6 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from .._solver.kkt_step import all_finite, regularised_step
@@ -51,9 +50,9 @@ from .._solver.newton_kkt import (
     EquilibriumResult,
     NewtonKKT,
     _kkt_at_solution,
-    _kkt_residual,
     _kkt_route,
     _lagrangian_hessian,
+    implicit_tangent,
 )
 
 
@@ -153,15 +152,10 @@ def _step_solution(objective, hessian_fn, solver, args, z0, lam0):
 def _step_solution_jvp(objective, hessian_fn, solver, primals, tangents):
     args, z0, lam0 = primals
     z, lam, stats = _step_solution(objective, hessian_fn, solver, args, z0, lam0)
-    _, residual_dot = jax.jvp(lambda a: _kkt_residual(objective, z, lam, a), (args,),
-                              (tangents[0],))
     route = _kkt_route(hessian_fn, solver, args, z0, lam0)
-    solution_dot = -route.solve(_kkt_at_solution(objective, hessian_fn, route, args, z, lam),
-                                residual_dot)
-    stats_dot = tuple(jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
-                      else np.zeros(s.shape, dtype=jax.dtypes.float0) for s in stats)
-    n = z.shape[0]
-    return (z, lam, stats), (solution_dot[:n], solution_dot[n:], stats_dot)
+    kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
+    return (z, lam, stats), implicit_tangent(objective, route, args, tangents[0], z, lam, kkt,
+                                             stats)
 
 
 def solve_step(objective, guess, args, solver: NewtonKKT, multipliers, hessian,

@@ -393,32 +393,38 @@ def _kkt_residual(objective, z, lam, args):
     return jnp.concatenate([grad, c])
 
 
-@_equilibrium.defjvp
-def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
-    args, z0, lam0 = primals
-    args_dot = tangents[0]
-    # The solve itself as the primitive it is (not re-traced under the tangents'
-    # transformations: under ``jacfwd`` the Newton loops stay unbatched over the tangent
-    # basis), then the tangent by the implicit function theorem.
-    z, lam, stats, at_solution = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
-    n = z.shape[0]
+def implicit_tangent(objective, route, args, args_dot, z, lam, kkt, stats):
+    """The implicit function theorem's tangent of a KKT point ``(z, lam)``:
+    ``(z_dot [n], lam_dot [m], stats_dot)`` with ``kkt`` the KKT matrix at the point (the
+    route's form) and ``stats`` the solve's statistics (zero or ``float0`` tangents)."""
     _, residual_dot = jax.jvp(
         lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
     )
-    # The KKT matrix at the solution from the Hessian and constraint Jacobian of the solve's
-    # last linearised iterate (the solution, where it converged), solved on the route of the
-    # Newton iterations (chosen again here, at trace time, by the same static rule).
-    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
-    kkt = _floor_kkt(route, *at_solution)
     solution_dot = -route.solve(kkt, residual_dot)
     stats_dot = tuple(
         jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
         else np.zeros(s.shape, dtype=jax.dtypes.float0)
         for s in stats
     )
+    n = z.shape[0]
+    return solution_dot[:n], solution_dot[n:], stats_dot
+
+
+@_equilibrium.defjvp
+def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
+    args, z0, lam0 = primals
+    # The solve itself as the primitive it is (not re-traced under the tangents'
+    # transformations: under ``jacfwd`` the Newton loops stay unbatched over the tangent
+    # basis), then the tangent by the implicit function theorem.
+    z, lam, stats, at_solution = _equilibrium(objective, hessian_fn, solver, args, z0, lam0)
+    # The KKT matrix at the solution from the Hessian and constraint Jacobian of the solve's
+    # last linearised iterate (the solution, where it converged), solved on the route of the
+    # Newton iterations (chosen again here, at trace time, by the same static rule).
+    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    z_dot, lam_dot, stats_dot = implicit_tangent(objective, route, args, tangents[0], z, lam,
+                                                 _floor_kkt(route, *at_solution), stats)
     at_solution_dot = jax.tree.map(jnp.zeros_like, at_solution)
-    return ((z, lam, stats, at_solution),
-            (solution_dot[:n], solution_dot[n:], stats_dot, at_solution_dot))
+    return ((z, lam, stats, at_solution), (z_dot, lam_dot, stats_dot, at_solution_dot))
 
 
 def solve_equilibrium(
