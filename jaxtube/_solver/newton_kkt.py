@@ -394,18 +394,12 @@ def _kkt_residual(objective, z, lam, args):
 
 
 def implicit_tangent(objective, route, args, args_dot, z, lam, kkt, stats):
-    """The implicit function theorem's tangent of a KKT point ``(z, lam)``:
-    ``(z_dot [n], lam_dot [m], stats_dot)`` with ``kkt`` the KKT matrix at the point (the
-    route's form) and ``stats`` the solve's statistics (zero or ``float0`` tangents)."""
-    _, residual_dot = jax.jvp(
-        lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,)
-    )
+    """The implicit function theorem's tangent ``(z_dot [n], lam_dot [m], stats_dot)`` of a
+    KKT point ``(z, lam)``, ``kkt`` its KKT matrix (the route's form), ``stats`` the solve's."""
+    _, residual_dot = jax.jvp(lambda a: _kkt_residual(objective, z, lam, a), (args,), (args_dot,))
     solution_dot = -route.solve(kkt, residual_dot)
-    stats_dot = tuple(
-        jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
-        else np.zeros(s.shape, dtype=jax.dtypes.float0)
-        for s in stats
-    )
+    stats_dot = tuple(jnp.zeros_like(s) if jnp.issubdtype(s.dtype, jnp.inexact)
+                      else np.zeros(s.shape, dtype=jax.dtypes.float0) for s in stats)
     n = z.shape[0]
     return solution_dot[:n], solution_dot[n:], stats_dot
 
