@@ -138,3 +138,29 @@ def test_unwrinkled_linearity_matches_continuum_solver():
     # Linear over 70 % of the first regime, the tube starts softer than the odd cubic, whose
     # initial slope (3 M_1 / k_1 - d_1) / 2 exceeds the secant M_1 / k_1.
     assert expected[0] < plain[0]
+
+
+def test_effects_that_do_not_load_at_rest_leave_the_unloaded_specimen_straight():
+    """The rig skips the unloaded solve unless an effect ``loads_at_rest``: every built-in
+    that says it does not (each at a typical, non-null size) leaves the specimen's loads
+    and rest geometry those of the plain specimen (its laws are odd, so the straight
+    template is then the unloaded equilibrium), where self-weight (which does) adds a weight."""
+    rig = CantileverRig(segments=4, features=frozenset({"shear", "clamp_spring"}))
+    law = jt.SplineLaw.from_tension_field(150e3, PRESSURE, RADIUS, form="paper")
+    stiffness_only = tuple(cls(*[p.typical for p in cls.parameters])
+                           for cls in (*fx.MODEL_EXTENSIONS.values(), *fx.BUILT_IN_EFFECTS.values())
+                           if not cls.loads_at_rest)
+    assert {e.name for e in stiffness_only} == {"reinforcement", "clamp_compliance", "shear",
+                                                "radius_scaling", "unwrinkled_linearity"}
+
+    def at_rest(effects):
+        model = TubeModel(law, jt.LinearLaw(150.0), effects, reference=(PRESSURE, RADIUS))
+        params = rig.specimen_parameters(model, PRESSURE, RADIUS, LENGTH)
+        return [np.asarray(x) for x in (params.node_position, params.mass_per_length,
+                                         params.line_load, params.node_force,
+                                         params.node_torque, *jax.tree.leaves(params.elements))]
+
+    plain = at_rest(())
+    for changed, unchanged in zip(at_rest(stiffness_only), plain, strict=True):
+        np.testing.assert_array_equal(changed, unchanged)
+    assert not all(np.array_equal(a, b) for a, b in zip(at_rest((fx.SelfWeight(0.3),)), plain))

@@ -48,30 +48,33 @@ def _set(params, name, value):
     return eqx.tree_at(lambda p: getattr(p.bending_laws[0], field), params, array)
 
 
-def _check(value_fn, params, solve):
-    """Compare ``grad(value_fn)`` with central differences of ``value_fn``; ``solve`` gives
-    the path, to check that every step converged in the wrinkled regime."""
-    compiled = jax.jit(lambda p: (value_fn(p), solve(p)))
-    _, sol = compiled(params)
+def _check(quantity, params, solve):
+    """Compare the gradient of ``quantity(p, solve(p))`` with its central differences. One
+    compiled program (value, gradient and the path's solution, to check that every step
+    converged in the wrinkled regime) serves the gradient and every difference."""
+    def value_and_solution(p):
+        sol = solve(p)
+        return quantity(p, sol), sol
+
+    compiled = jax.jit(jax.value_and_grad(value_and_solution, has_aux=True))
+    (value0, sol), grad = compiled(params)
     assert bool(np.all(sol.converged))
     assert int(np.max(sol.joint_regime[-1])) >= 1, "the test must reach the wrinkled regime"
 
     def value(p):
-        return compiled(p)[0]
+        return float(compiled(p)[0][0])
 
-    grad = jax.jit(jax.grad(value_fn))(params)
     names = list(PARAMETERS) + ["r"]
     getters = dict(PARAMETERS, r=lambda p: p.node_radius[0])
     for name in names:
         x0 = float(getters[name](params))
         h = 1e-4 * abs(x0)
-        fd = (float(value(_set(params, name, x0 + h))) - float(value(_set(params, name, x0 - h))))
-        fd /= 2 * h
+        fd = (value(_set(params, name, x0 + h)) - value(_set(params, name, x0 - h))) / (2 * h)
         if name == "r":
             analytic = float(jnp.sum(grad.node_radius))
         else:
             analytic = float(getters[name](grad))
-        scale = max(abs(fd), 1e-6 * abs(float(value(params))) / abs(x0))
+        scale = max(abs(fd), 1e-6 * abs(float(value0)) / abs(x0))
         assert abs(analytic - fd) <= 1e-5 * scale, (name, analytic, fd)
 
 
@@ -83,8 +86,7 @@ def test_tip_deflection_gradient_force_control(problem):
     loaded = eqx.tree_at(lambda p: p.node_force, params, force)
     path = jt.ForceControl(jnp.linspace(0.25, 1.0, 4))
 
-    def tip_deflection(p):
-        sol = jt.solve_path(structure, p, path)
+    def tip_deflection(p, sol):
         return -(sol.node_position[-1, tip, 2] - p.node_position[tip, 2])
 
     _check(tip_deflection, loaded, lambda p: jt.solve_path(structure, p, path))
@@ -95,7 +97,7 @@ def test_reaction_force_gradient_displacement_control(problem):
     tip = structure.node_id("tube:end")
     path = jt.DisplacementControl(tip, [0.0, 0.0, -1.0], jnp.linspace(0.02, 0.08, 4))
 
-    def tip_force(p):
-        return jt.solve_path(structure, p, path).control_force[-1]
+    def tip_force(p, sol):
+        return sol.control_force[-1]
 
     _check(tip_force, params, lambda p: jt.solve_path(structure, p, path))

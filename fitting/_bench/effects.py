@@ -102,6 +102,11 @@ class Effect(eqx.Module):
             which this effect's signature differs from the bending law's: data that vary
             them tell it apart. The diagnosis names them when the effect is confounded.
         signature: one sentence on how the effect shows in force-deflection curves.
+        loads_at_rest: whether the effect can load the specimen before the test load (a
+            weight): the rig then solves the specimen's unloaded shape and measures the
+            deflections from it (:meth:`fitting._bench.rig.CantileverRig.curve`). True
+            unless the effect only changes stiffness or compliance, so that the unloaded
+            specimen stays straight and the rig's program needs no unloaded solve.
     """
 
     name: ClassVar[str] = ""
@@ -111,6 +116,7 @@ class Effect(eqx.Module):
     forms: ClassVar[tuple[str, ...]] = ("paper", "separate")
     separated_by: ClassVar[tuple[str, ...]] = ()
     signature: ClassVar[str] = ""
+    loads_at_rest: ClassVar[bool] = True
 
     def apply(self, params: jt.StructureParameters,
               specimen: RigSpecimen) -> jt.StructureParameters:
@@ -150,6 +156,7 @@ class Reinforcement(Effect):
     separated_by: ClassVar[tuple[str, ...]] = ("pressure", "radius")
     signature: ClassVar[str] = ("stiffness that does not grow with p r^3: relatively larger at "
                                 "low pressure and small radius, delays wrinkling")
+    loads_at_rest: ClassVar[bool] = False
     stiffness: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -192,6 +199,7 @@ class ClampCompliance(Effect):
     separated_by: ClassVar[tuple[str, ...]] = ("length",)
     signature: ClassVar[str] = ("a deflection c P L^2 that grows like L^2, not L^3, and stays "
                                 "linear while the tube wrinkles")
+    loads_at_rest: ClassVar[bool] = False
     compliance: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -212,6 +220,7 @@ class Shear(Effect):
     separated_by: ClassVar[tuple[str, ...]] = ("length", "pressure")
     signature: ClassVar[str] = ("a compliance L / (p pi r^2 + k G A) that grows like L, not "
                                 "L^3: relatively larger for short tubes at low pressure")
+    loads_at_rest: ClassVar[bool] = False
     flexibility: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
@@ -244,6 +253,7 @@ class RadiusScaling(Effect):
     separated_by: ClassVar[tuple[str, ...]] = ("radius",)
     signature: ClassVar[str] = ("pivots that scale with the radius differently from (p r^3)^B: "
                                 "curves at different radii misfit in opposite directions")
+    loads_at_rest: ClassVar[bool] = False
     curvature_radius_excess: jnp.ndarray = eqx.field(converter=jnp.asarray)
     moment_radius_excess: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
@@ -299,6 +309,7 @@ class UnwrinkledLinearity(Effect):
     signature: ClassVar[str] = ("curves straighter than the model at first, then softening "
                                 "more abruptly near the wrinkling onset, at every pressure "
                                 "and radius alike")
+    loads_at_rest: ClassVar[bool] = False
     linear_share: jnp.ndarray = eqx.field(converter=jnp.asarray)
 
     def apply(self, params, specimen):
