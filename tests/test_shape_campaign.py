@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import fitting
+import jaxtube as jt
 from fitting._cli.shape import add_shape
 
 DATA = Path(__file__).resolve().parents[1] / "experiments" / "data" / "v3_hanging"
@@ -93,10 +94,20 @@ def test_line_set_factor_scales_its_lines_alone():
     np.testing.assert_array_equal(np.asarray(stiffer.line_stiffness)[others], stiffness[others])
     np.testing.assert_allclose(np.asarray(stiffer.line_stiffness)[rows], 2 * stiffness[rows])
     np.testing.assert_array_equal(np.asarray(stiffer.line_rest_length), before)
-    # The bending factor reaches every tube's law, in the form asked for.
-    laws = fitting.import_campaign_case(campaign, case, fitting.KiteModel(
-        law_form="moment", bending_scale=0.3)).params.bending_laws
-    assert all(type(law).__name__ == "ScaledLaw" and float(law.factor) == 0.3 for law in laws)
+    # The bending and collapse factors reach every tube's law, in the form asked for: the
+    # initial stiffness x the bending factor in both forms, the plateau (wrinkling and
+    # collapse moments) x the collapse factor, and in the moment form x the bending too.
+    base = jt.EmpiricalBendingLaw2011()
+    pressure, radius = 0.15e5, 0.08
+    plateau = base.moment(1e4, pressure, radius)
+    for form, collapse, moments in (("curvature", 0.6, 0.6), ("moment", 0.6, 0.18)):
+        laws = fitting.import_campaign_case(campaign, case, fitting.KiteModel(
+            law_form=form, bending_scale=0.3, collapse_scale=collapse)).params.bending_laws
+        for law in laws[:3]:
+            assert float(law.initial_stiffness(pressure, radius)) == pytest.approx(
+                0.3 * float(base.initial_stiffness(pressure, radius)), rel=1e-12)
+            assert float(law.moment(1e4, pressure, radius)) == pytest.approx(
+                moments * float(plateau), rel=1e-6)
 
 
 @pytest.mark.parametrize("change, key, reason", [
@@ -151,11 +162,12 @@ def test_every_problem_at_once_and_model_file_checked(tmp_path):
                                            "rest_length_factors": {"trailing_edge": 0.95}}}))
     assert fitting.read_model_file(model, campaign) == fitting.KiteModel(
         "curvature", 0.5, {"trailing_edge": 0.95})
-    model.write_text(json.dumps({"model": {"pressure_offset_bar": -0.01,
+    model.write_text(json.dumps({"model": {"pressure_offset_bar": -0.01, "collapse_scale": 0.6,
                                            "suspension_offsets_mm": {"116.z": 4.0}}}))
     assert fitting.read_model_file(model, campaign) == fitting.KiteModel(
-        pressure_offset_bar=-0.01, suspension_offsets_mm={"116.z": 4.0})
+        pressure_offset_bar=-0.01, suspension_offsets_mm={"116.z": 4.0}, collapse_scale=0.6)
     for table, words in (({"bending_scale": -1}, "model.bending_scale: expected a positive"),
+                         ({"collapse_scale": 0}, "model.collapse_scale: expected a positive"),
                          ({"suspension_offsets_mm": {"82.w": 1.0}},
                           "model.suspension_offsets_mm.82.w: unknown suspension axis")):
         model.write_text(json.dumps({"model": table}))

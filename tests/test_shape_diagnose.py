@@ -110,8 +110,18 @@ def test_diagnosis_names_the_planted_bridle_and_nothing_else(tmp_path):
 
 def test_nothing_planted_gets_no_effect(tmp_path):
     """Scoring the left-out cases by refitting (the planted test above scores them by the
-    linearised step): no candidate is added either way."""
+    linearised step): no candidate is added either way. The collapse factor moves the
+    solved shape the way it should."""
     campaign_path = write_campaign(tmp_path, bridle=1.0)
+    # The collapse factor (on the program write_campaign compiled): weaker wrinkling and
+    # collapse moments let the loaded node sink further along gravity (+z).
+    campaign = fitting.read_campaign(campaign_path)
+    solver, case = fitting.CaseSolver(campaign), campaign.case("centre")
+    sunk = [solver.solve(case, fitting.KiteModel(bending_scale=BENDING, collapse_scale=c))
+            for c in (1.0, 0.2)]
+    assert all(s.converged for s in sunk)
+    node = case.loads[0].node
+    assert sunk[1].positions[node, 2] - sunk[0].positions[node, 2] > 0.003
     assert run_diagnose(campaign_path, tmp_path / "out", "--held-out", "refit") == 0
     diagnosis = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert diagnosis["added"] == []
@@ -145,7 +155,7 @@ def test_candidate_effects_built_in_user_and_refused(tmp_path, capsys):
     (tmp_path / "user.py").write_text(USER_EFFECT)
     campaign = fitting.read_campaign(tmp_path / "campaign.toml")
     effects = fitting.shape_effects(campaign)
-    assert set(effects) == {"bending", "torsion", "pressure", "rest_length.bridle",
+    assert set(effects) == {"bending", "torsion", "collapse", "pressure", "rest_length.bridle",
                             "stiffness.bridle", "bending.leading_edge", "bending.struts",
                             "point_mass.centre", "point_mass.knot", "suspension"}
     assert effects["rest_length.bridle"].bounds == {"rest_length_factors.bridle": (0.9, 1.1)}
@@ -184,7 +194,11 @@ def test_candidate_effects_built_in_user_and_refused(tmp_path, capsys):
     changed = fitting.import_campaign_case(campaign, case, model)
     strut = np.asarray(["7" in n or "9" in n for n in changed.tube_names])
     assert strut.sum() == 2 and (~strut).sum() >= 1
-    bending = np.array([float(law.factor) for law in changed.params.bending_laws])
+    pressure = float(plain.params.pressure[0])
+    bending = np.array([float(law.initial_stiffness(pressure, 0.05)
+                              / plain_law.initial_stiffness(pressure, 0.05))
+                        for law, plain_law in zip(changed.params.bending_laws,
+                                                  plain.params.bending_laws)])
     assert bending == pytest.approx(np.where(strut, 1.5, 0.5))
     assert [float(law.factor) for law in changed.params.torsion_laws] == [2.0] * len(strut)
     assert np.asarray(changed.params.pressure) == pytest.approx(

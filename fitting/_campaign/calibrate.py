@@ -63,6 +63,7 @@ UNDETERMINED_RELATIVE_ERROR = 0.5
 UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
 DEFAULT_BOUNDS = {"bending_scale": (0.05, 5.0), "torsion_scale": (0.1, 10.0),
+                  "collapse_scale": (0.1, 10.0),
                   "pressure_factor": (0.8, 1.25), "rest_length_factors": (0.8, 1.2),
                   "stiffness_factors": (0.1, 10.0), "bending_class_factors": (0.05, 20.0),
                   "pressure_offset_bar": (-0.05, 0.05), "point_masses_kg": (0.0, 5.0),

@@ -16,6 +16,10 @@ Built-in effects (:func:`shape_effects`; ``SET``: each of the campaign's ``[line
   stiffness measured on leading edges and struts spans about a factor of ten either side of
   Breukels' 2011 fit (Breukels 2011, ch. 3; the V3 calibration finds 0.27);
 - ``torsion``: the torsion law's factor (``torsion_scale``), 0.1-10;
+- ``collapse``: the bending law's wrinkling and collapse moments scaled, its stiffness kept
+  (``collapse_scale``), 0.2-5: Comer & Levy's membrane collapse moment ``pi p r^3`` is
+  0.2-0.75 of Breukels' 2011 plateau for the V3 tubes at 0.15 bar (r 0.04-0.10 m) and
+  0.3-1.0 at 0.25 bar; seams and Dacron reinforcement raise it;
 - ``pressure``: an offset on every case's stated overpressure (``pressure_offset_bar``),
   -0.03 to +0.03 bar: a hand gauge's zero error and the tube's pressure change when hung,
   at 0.1-0.3 bar;
@@ -99,6 +103,8 @@ class ShapeEffect:
 KITE_EFFECTS = {
     "bending": ("bending_scale", (0.05, 5.0), "the tubes' bending law scaled"),
     "torsion": ("torsion_scale", (0.1, 10.0), "the tubes' torsion law scaled"),
+    "collapse": ("collapse_scale", (0.2, 5.0), "the tubes' wrinkling and collapse moments "
+                                              "scaled, their stiffness kept"),
     "pressure": ("pressure_offset_bar", (-0.03, 0.03), "every case's overpressure offset"),
 }
 #: A point mass's plausible range [kg] (module docstring).

@@ -4,13 +4,13 @@ for the markers, its line sets and measured lengths.
 The structure is imported once per case (:func:`jaxtube.import_kite_fem`: the case's
 pressure; every case has the same structure and parameter shapes), the case's loads are set
 as dead forces on their nodes, and the model's values (:class:`KiteModel`) are put into the
-parameters (:func:`with_model_values`): the bending law's factor (``law_form``:
-:class:`jaxtube.CurvatureScaledLaw` or :class:`jaxtube.ScaledLaw` over Breukels' 2011 law),
-per tube class and for torsion, the pressure's factor and offset, the rest lengths and
-stiffnesses of each named line set times their factors, point masses at named points (dead
-loads) and the suspension points' offsets (the fixed points' positions). Values are
-parameters, not structure: one compiled program serves every value
-(:mod:`fitting._campaign.solve`). Factors are searched by their logarithm, masses and
+parameters (:func:`with_model_values`): the bending law's factor (``law_form``: the
+stiffness, or the whole curve, of Breukels' 2011 law scaled) and its collapse factor (the
+wrinkling and collapse moments scaled), per tube class and for torsion, the pressure's
+factor and offset, the rest lengths and stiffnesses of each named line set times their
+factors, point masses at named points (dead loads) and the suspension points' offsets (the
+fixed points' positions). Values are parameters, not structure: one compiled program serves
+every value (:mod:`fitting._campaign.solve`). Factors are searched by their logarithm, masses and
 offsets as they are (:func:`search_coordinates`).
 """
 
@@ -56,30 +56,29 @@ PASCAL_PER_BAR = 1e5
 def with_model_values(campaign: Campaign, params: jt.StructureParameters,
                       model: KiteModel, imported: jt.KiteFemImport | None = None
                       ) -> jt.StructureParameters:
-    """``params`` with ``model``'s values: the bending and torsion factors on every tube's
-    laws (the laws must already be scaled laws of ``model.law_form``:
-    :func:`import_campaign_case`), every tube's pressure times the pressure factor plus the
-    pressure offset, the rest lengths and stiffnesses of each line set times their factors,
-    each named point's mass as a dead load along gravity and the suspension points moved by
-    their offsets. ``imported`` (the kite these parameters are of) is needed for the values
-    that act on named tubes or nodes: ``bending_class_factors``, ``point_masses_kg``,
-    ``suspension_offsets_mm``. Every value enters differentiably (traced values welcome)."""
+    """``params`` with ``model``'s values: the bending, collapse and torsion factors on every
+    tube's laws (the bending laws must be :func:`campaign_bending_law`'s, the torsion laws
+    scaled laws: :func:`import_campaign_case`), every tube's pressure times the pressure
+    factor plus the pressure offset, the rest lengths and stiffnesses of each line set times
+    their factors, each named point's mass as a dead load along gravity and the suspension
+    points moved by their offsets. ``imported`` (the kite these parameters are of) is needed
+    for the values that act on named tubes or nodes: ``bending_class_factors``,
+    ``point_masses_kg``, ``suspension_offsets_mm``. Every value enters differentiably
+    (traced values welcome)."""
     needs_kite = [kind for kind in ("bending_class_factors", "point_masses_kg",
                                     "suspension_offsets_mm") if getattr(model, kind)]
     if needs_kite and imported is None:
         raise ValueError(f"with_model_values: {', '.join(needs_kite)} need the imported kite")
-    scaled = (jt.ScaledLaw, jt.CurvatureScaledLaw)
     count = len(params.bending_laws)
     bending = [model.bending_scale] * count
     for name, factor in model.bending_class_factors.items():
         for t in np.flatnonzero(tube_class_members(campaign, imported.tube_names, name)):
             bending[t] = bending[t] * factor
-    for field, factors in (("bending_laws", bending),
-                           ("torsion_laws", [model.torsion_scale] * count)):
-        laws = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(factor))
-                     if isinstance(law, scaled) else law
-                     for law, factor in zip(getattr(params, field), factors))
-        params = eqx.tree_at(lambda p, field=field: getattr(p, field), params, laws)
+    laws = tuple(_bending_law_with(law, model.law_form, factor, model.collapse_scale)
+                 for law, factor in zip(params.bending_laws, bending))
+    torsion = tuple(eqx.tree_at(lambda law: law.factor, law, jnp.asarray(model.torsion_scale))
+                    if isinstance(law, jt.ScaledLaw) else law for law in params.torsion_laws)
+    params = eqx.tree_at(lambda p: (p.bending_laws, p.torsion_laws), params, (laws, torsion))
     params = eqx.tree_at(lambda p: p.pressure, params, params.pressure * model.pressure_factor
                          + model.pressure_offset_bar * PASCAL_PER_BAR)
     elements = params.elements
@@ -106,6 +105,27 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     return params
 
 
+def campaign_bending_law(law_form: str) -> jt.ScaledLaw:
+    """Breukels' 2011 bending law as every tube of a campaign's kite carries it:
+    ``ScaledLaw(CurvatureScaledLaw(law, a), b)``, ``M(kappa) = b M_2011(a kappa)`` (factors
+    1 here; :func:`with_model_values` sets them): one structure for both law forms and every
+    value, so one compiled program serves them all. ``law_form`` is checked here."""
+    if law_form not in ("curvature", "moment"):
+        raise ValueError(f"law_form: expected 'curvature' or 'moment', found {law_form!r}")
+    return jt.ScaledLaw(jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0), 1.0)
+
+
+def _bending_law_with(law, law_form: str, bending, collapse):
+    """``law`` (:func:`campaign_bending_law`) with bending factor ``s`` = ``bending`` and
+    collapse factor ``c`` = ``collapse``: the initial stiffness ``s EI0`` in either form, the
+    wrinkling and collapse moments ``c M_max`` (curvature form: ``M = c M(s kappa / c)``) or
+    ``c s M_max`` (moment form: ``M = c s M(kappa / c)``). Traced factors welcome."""
+    outer, inner = ((collapse, bending / collapse) if law_form == "curvature"
+                    else (bending * collapse, 1.0 / collapse))
+    return eqx.tree_at(lambda law: (law.factor, law.base.factor), law,
+                       (jnp.asarray(outer), jnp.asarray(inner)))
+
+
 def suspension_point_row(imported: jt.KiteFemImport, node: int) -> int:
     """The row of suspension ``node`` (a fixed point of the imported kite) in
     ``params.elements.point_position``; ``ValueError`` if it is a tube node (held by a
@@ -121,7 +141,8 @@ def suspension_point_row(imported: jt.KiteFemImport, node: int) -> int:
 VALUE_KINDS = ("rest_length_factors", "stiffness_factors", "bending_class_factors",
                "point_masses_kg", "suspension_offsets_mm")
 #: The model's values that act on the whole kite.
-KITE_VALUES = ("bending_scale", "torsion_scale", "pressure_factor", "pressure_offset_bar")
+KITE_VALUES = ("bending_scale", "torsion_scale", "collapse_scale", "pressure_factor",
+               "pressure_offset_bar")
 #: Values that add to the model file's (null 0, searched as they are); the others are
 #: factors on it (null 1, searched by their logarithm).
 OFFSET_KINDS = ("pressure_offset_bar", "point_masses_kg", "suspension_offsets_mm")
@@ -191,9 +212,7 @@ def with_values(model: KiteModel, names, values) -> KiteModel:
 def import_campaign_case(campaign: Campaign, case: CampaignCase,
                          model: KiteModel) -> jt.KiteFemImport:
     """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""
-    law = (jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0)
-           if model.law_form == "curvature" else
-           jt.ScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0))
+    law = campaign_bending_law(model.law_form)
     suspension = campaign.suspension
     # The importer's own V3 loads stay off (zero masses; its load nodes are set to a
     # suspension node so that they exist in any model): the case's loads follow.

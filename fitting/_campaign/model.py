@@ -50,6 +50,11 @@ class KiteModel:
             dead load along gravity besides the case's loads.
         suspension_offsets_mm: ``{"NODE.AXIS": offset [mm]}``: a suspension point moved from
             the model file's position along ``x``, ``y`` or ``z`` of the model's frame.
+        collapse_scale: the factor on every tube's wrinkling and collapse moments (the
+            bending law's plateau ``M_max``) on top of the law form's, the initial stiffness
+            kept (1: the law form's moments). With ``c`` this factor and ``s`` the bending
+            factor, ``M(kappa) = c M_2011(s kappa / c)`` in the curvature form and
+            ``c s M_2011(kappa / c)`` in the moment form.
     """
 
     law_form: str = "curvature"
@@ -62,10 +67,12 @@ class KiteModel:
     pressure_offset_bar: float = 0.0
     point_masses_kg: dict = dataclasses.field(default_factory=dict)
     suspension_offsets_mm: dict = dataclasses.field(default_factory=dict)
+    collapse_scale: float = 1.0
 
     def to_json(self) -> dict:
         return {"law_form": self.law_form, "bending_scale": float(self.bending_scale),
                 "torsion_scale": float(self.torsion_scale),
+                "collapse_scale": float(self.collapse_scale),
                 "pressure_factor": float(self.pressure_factor),
                 "pressure_offset_bar": float(self.pressure_offset_bar),
                 "rest_length_factors": {k: float(v) for k, v in
@@ -137,7 +144,7 @@ def read_model_values(table, where, checker, members) -> KiteModel:
     """A :class:`KiteModel` from a ``[model]`` table (or a model.json object);
     ``members``: ``{kind: names}`` the campaign's members of each kind of
     :data:`MEMBER_VALUES` (:meth:`Campaign.members`)."""
-    known = ("law_form", "bending_scale", "torsion_scale", "pressure_factor",
+    known = ("law_form", "bending_scale", "torsion_scale", "collapse_scale", "pressure_factor",
              "pressure_offset_bar") + tuple(MEMBER_VALUES)
     for key in table:
         if key not in known:
@@ -149,6 +156,7 @@ def read_model_values(table, where, checker, members) -> KiteModel:
                                          f"found {form!r}")
     scale = checker.number(table, "bending_scale", where, default=1.0, positive=True)
     torsion = checker.number(table, "torsion_scale", where, default=1.0, positive=True)
+    collapse = checker.number(table, "collapse_scale", where, default=1.0, positive=True)
     pressure = checker.number(table, "pressure_factor", where, default=1.0, positive=True)
     offset = checker.number(table, "pressure_offset_bar", where, default=0.0)
     values = {}
@@ -171,7 +179,8 @@ def read_model_values(table, where, checker, members) -> KiteModel:
     return KiteModel(form, scale or 1.0, values["rest_length_factors"],
                      values["stiffness_factors"], torsion or 1.0, pressure or 1.0,
                      values["bending_class_factors"], offset or 0.0,
-                     values["point_masses_kg"], values["suspension_offsets_mm"])
+                     values["point_masses_kg"], values["suspension_offsets_mm"],
+                     collapse or 1.0)
 
 
 def parse_document(path: Path, loads, decode_error: type[Exception], kind: str):
