@@ -12,6 +12,14 @@ Float64: Newton tolerances need double precision, so ``jax_enable_x64`` is turne
 (docs/further/developer.md, "Float64"). ``JAXTUBE_NO_X64=1`` keeps JAX's default; solves
 then raise a clear ``TypeError`` instead of silently failing in float32.
 
+Compilation: XLA's CPU backend compiles each fusion with its MLIR fusion emitters by default;
+on this package's programs they take about half of the compile time and make the programs no
+faster, so jaxtube turns them off (``--xla_cpu_use_fusion_emitters=false``; compile CPU time
+of the solve, gradient and fit programs 45-50 % lower, ``python -m experiments.bench_compile``,
+docs/performance.md). Set only for the jaxlib versions it was measured on (0.7.2 to 0.10;
+XLA stops a process at an unknown flag), and unless ``XLA_FLAGS`` already names the flag or
+``JAXTUBE_XLA_FUSION_EMITTERS=1``.
+
 CPU devices: ``JAXTUBE_CPU_DEVICES=N`` (or ``auto``: the CPUs this process may run on) adds
 ``--xla_force_host_platform_device_count=N`` unless ``XLA_FLAGS`` already sets it, so that
 ``jaxtube.map_members`` can split independent solves over the cores (docs/guides/solver.md,
@@ -28,6 +36,24 @@ if ("xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", "")
         and os.environ.get("JAXTUBE_XLA_THREADS", "0") in ("", "0")):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
                                + " --xla_cpu_multi_thread_eigen=false").strip()
+
+
+def _measured_jaxlib() -> bool:
+    """Whether the installed jaxlib is one the fusion-emitter flag was measured on."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        major, minor = (int(part) for part in version("jaxlib").split(".")[:2])
+    except (PackageNotFoundError, ValueError):
+        return False
+    return (0, 7) <= (major, minor) <= (0, 10)
+
+
+if ("xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", "")
+        and os.environ.get("JAXTUBE_XLA_FUSION_EMITTERS", "0") in ("", "0")
+        and _measured_jaxlib()):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
+                               + " --xla_cpu_use_fusion_emitters=false").strip()
 
 
 def _cpu_device_count(value: str) -> int:

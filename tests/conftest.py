@@ -1,21 +1,18 @@
 """Test configuration: float64 and strict dtype promotion for every test; single-threaded
-XLA CPU kernels.
+XLA CPU kernels and XLA's CPU fusion emitters off.
 
 The suite runs on two worker processes (pytest-xdist, see pyproject.toml) on two-core
 machines. XLA's default multi-threaded Eigen kernels then oversubscribe the cores: a small
 dense solve that takes ~6 ms on one thread took 150-300 ms under that contention
-(measured on this project's CI-sized machine, docs/performance.md). The flags must be set
-before JAX initialises its CPU backend, hence here, before ``import jax``; a value the
-caller already put in ``XLA_FLAGS`` is kept.
+(measured on this project's CI-sized machine, docs/performance.md). ``import jaxtube`` sets
+that flag, and the fusion emitters' (half the compile time), in ``XLA_FLAGS``; XLA reads them
+when JAX initialises its CPU backend, hence the import here, before anything runs on JAX.
 
 Compiled programs go to a persistent cache shared by the workers (below).
 """
 
 import os
 
-_SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false"
-if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + _SINGLE_THREAD).strip()
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # The command line turns on a persistent compilation cache in the user's cache directory; in
 # the tests the cache below serves instead (tests/test_compilation_cache.py unsets this).
@@ -26,6 +23,8 @@ from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
+
+import jaxtube  # noqa: E402,F401  (its import-time settings: XLA_FLAGS, float64)
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")

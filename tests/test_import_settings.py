@@ -1,6 +1,6 @@
 """What ``import jaxtube`` switches on (README, "Float64" and "Threads"), checked in fresh
-interpreters: float64, single-threaded XLA CPU kernels, both opt-outs, and the CPU devices
-``JAXTUBE_CPU_DEVICES`` asks for."""
+interpreters: float64, single-threaded XLA CPU kernels, XLA's CPU fusion emitters off (compile
+time), the opt-outs, and the CPU devices ``JAXTUBE_CPU_DEVICES`` asks for."""
 
 import os
 import subprocess
@@ -17,7 +17,7 @@ PROBE = ("import os, jaxtube, jax; print(os.environ.get('XLA_FLAGS', '')); "
 def _run(**env):
     clean = {k: v for k, v in os.environ.items()
              if k not in ("XLA_FLAGS", "JAXTUBE_XLA_THREADS", "JAXTUBE_NO_X64",
-                          "JAXTUBE_CPU_DEVICES")}
+                          "JAXTUBE_CPU_DEVICES", "JAXTUBE_XLA_FUSION_EMITTERS")}
     clean.update(env, PYTHONPATH=str(REPO), JAX_PLATFORMS="cpu")
     done = subprocess.run([sys.executable, "-c", PROBE], env=clean, capture_output=True,
                           text=True, timeout=120, check=True)
@@ -25,18 +25,21 @@ def _run(**env):
     return flags, x64 == "True"
 
 
+EIGEN, EMITTERS = "--xla_cpu_multi_thread_eigen=false", "--xla_cpu_use_fusion_emitters=false"
+
+
 @pytest.mark.parametrize("env, flags, x64", [
-    ({}, "--xla_cpu_multi_thread_eigen=false", True),
-    ({"JAXTUBE_XLA_THREADS": "1"}, "", True),
-    ({"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true"}, "--xla_cpu_multi_thread_eigen=true",
-     True),
+    ({}, f"{EIGEN} {EMITTERS}", True),
+    ({"JAXTUBE_XLA_THREADS": "1", "JAXTUBE_XLA_FUSION_EMITTERS": "1"}, "", True),
+    ({"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true --xla_cpu_use_fusion_emitters=true"},
+     "--xla_cpu_multi_thread_eigen=true --xla_cpu_use_fusion_emitters=true", True),
     ({"XLA_FLAGS": "--xla_force_host_platform_device_count=2"},
-     "--xla_force_host_platform_device_count=2 --xla_cpu_multi_thread_eigen=false", True),
-    ({"JAXTUBE_NO_X64": "1"}, "--xla_cpu_multi_thread_eigen=false", False),
+     f"--xla_force_host_platform_device_count=2 {EIGEN} {EMITTERS}", True),
+    ({"JAXTUBE_NO_X64": "1"}, f"{EIGEN} {EMITTERS}", False),
     ({"JAXTUBE_CPU_DEVICES": "3"},
-     "--xla_cpu_multi_thread_eigen=false --xla_force_host_platform_device_count=3", True),
+     f"{EIGEN} {EMITTERS} --xla_force_host_platform_device_count=3", True),
     ({"JAXTUBE_CPU_DEVICES": "3", "XLA_FLAGS": "--xla_force_host_platform_device_count=2"},
-     "--xla_force_host_platform_device_count=2 --xla_cpu_multi_thread_eigen=false", True),
+     f"--xla_force_host_platform_device_count=2 {EIGEN} {EMITTERS}", True),
 ])
 def test_import_sets_float64_and_single_threaded_kernels_unless_told_not_to(env, flags, x64):
     assert _run(**env) == (flags, x64)

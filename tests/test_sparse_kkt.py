@@ -1,7 +1,7 @@
-"""The sparse KKT route (KLU on the pattern of the Hessian blocks) against the dense route:
-the same solutions and the same gradients through the implicit function theorem (1e-9
-relative), on a chain (torque, line load, self-weight, shear, displacement control) and an
-arch clamped at both ends with a strut (the two structures of ``tests/test_solver.py``'s
+"""The sparse KKT routes (KLU on the pattern of the Hessian blocks, and the augmented route)
+against the dense route: the same solutions (1e-9 relative) on a chain (torque, line load,
+self-weight, shear, displacement control) and an arch clamped at both ends with a strut, and
+on the chain the same gradients through the implicit function theorem (the two structures of ``tests/test_solver.py``'s
 Hessian test: a closed ring's closure and a pinned connection use the same code paths as the
 arch's second clamp and the chain's support, and every structure's constraint pattern and
 factors are checked below). Also: the sparse pattern's
@@ -25,9 +25,9 @@ from .test_solver import _hessian_cases
 CASES = _hessian_cases()
 
 
-def _solve_and_gradient(structure, params, control, route):
-    """Node positions at equilibrium and the gradient of a scalar of them w.r.t. the
-    pressure and the node forces (through the implicit function theorem)."""
+def _solve_and_gradient(structure, params, control, route, gradient):
+    """Node positions at equilibrium and (``gradient``) the gradient of a scalar of them
+    w.r.t. the pressure and the node forces (through the implicit function theorem)."""
     solver = jt.NewtonKKT(linear_solver=route)
     path = None
     if control is not None:
@@ -40,21 +40,30 @@ def _solve_and_gradient(structure, params, control, route):
         sol = jt.equilibrium(structure, p, path, solver=solver)
         return jnp.sum(weights * sol.node_position), sol
 
+    if not gradient:
+        sol = measure(params.pressure, params.node_force)[1]
+        return sol.node_position, sol.converged, sol.multipliers, ()
     (value, sol), grads = jax.value_and_grad(measure, argnums=(0, 1), has_aux=True)(
         params.pressure, params.node_force)
     return sol.node_position, sol.converged, sol.multipliers, grads
 
 
-# Each case compiles a solve with its gradient for each of the three routes.
-@pytest.mark.parametrize("case", range(2), ids=[c[0] for c in CASES[:2]])
-def test_sparse_and_dense_routes_agree(case):
+# Each case compiles a solve for each of the three routes. The gradient's linear solve is the
+# transposed (symmetric) KKT system of the Newton step's, on the same route: the chain
+# (displacement control, every load kind) compares gradients too, the arch (two clamps, a
+# strut's connection) the solutions, each compilation of a gradient costing about twice a
+# solve's.
+@pytest.mark.parametrize("case, gradient", [(0, True), (1, False)],
+                         ids=[c[0] for c in CASES[:2]])
+def test_sparse_and_dense_routes_agree(case, gradient):
     _, (structure, params), control = CASES[case]
     routes = ("dense", "sparse", "augmented")
     results = {route: jax.jit(lambda p, route=route: _solve_and_gradient(
-        structure, p, control, route))(params) for route in routes}
+        structure, p, control, route, gradient))(params) for route in routes}
     pos_d, ok_d, lam_d, grad_d = results["dense"]
     assert bool(ok_d)
-    assert float(jnp.max(jnp.abs(grad_d[1]))) > 0.0  # the force gradient is never zero
+    if gradient:
+        assert float(jnp.max(jnp.abs(grad_d[1]))) > 0.0  # the force gradient is never zero
     scale = float(jnp.max(jnp.abs(pos_d)))
     for route in routes[1:]:
         pos_s, ok_s, lam_s, grad_s = results[route]
@@ -62,7 +71,7 @@ def test_sparse_and_dense_routes_agree(case):
         np.testing.assert_allclose(pos_s, pos_d, rtol=1e-9, atol=1e-9 * scale, err_msg=route)
         np.testing.assert_allclose(lam_s, lam_d, rtol=1e-9, err_msg=route,
                                    atol=1e-9 * float(jnp.max(jnp.abs(lam_d))))
-        for g_s, g_d in zip(grad_s, grad_d):  # (the pressure's is zero for a linear law)
+        for g_s, g_d in zip(grad_s, grad_d, strict=True):  # (pressure's: zero, linear law)
             np.testing.assert_allclose(g_s, g_d, rtol=1e-9, err_msg=route,
                                        atol=1e-9 * float(jnp.max(jnp.abs(g_d))) + 1e-300)
 
