@@ -31,6 +31,7 @@ jaxtube module imports JAX.
 """
 
 import os
+from importlib.metadata import PackageNotFoundError, version
 
 if ("xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", "")
         and os.environ.get("JAXTUBE_XLA_THREADS", "0") in ("", "0")):
@@ -40,8 +41,6 @@ if ("xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", "")
 
 def _measured_jaxlib() -> bool:
     """Whether the installed jaxlib is one the fusion-emitter flag was measured on."""
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         major, minor = (int(part) for part in version("jaxlib").split(".")[:2])
     except (PackageNotFoundError, ValueError):
