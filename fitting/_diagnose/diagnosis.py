@@ -39,7 +39,7 @@ from .ranking import (
     default_candidates,
     rank_candidates,
 )
-from .refinement import refine_pivots
+from .refinement import PIVOT_REFINEMENTS, refine_pivots
 from .report import diagnosis_report
 from .score import chi2, parameter_names, point_count
 from .selection import backward_step, hold_undetermined_where_left, release_held
@@ -214,7 +214,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         while True:
             best = ranking[0] if ranking and ranking[0].significant else None
             if best is None and options.refine_pivots and comparison_now.verdict.systematic \
-                    and not any(step.refinement for step in steps):
+                    and sum(step.refinement for step in steps) < PIVOT_REFINEMENTS:
                 refined, held_refined, words = refine_pivots(current, in_model, by_name, data, rig,
                                                fit_options, candidates,
                                                options.bic_threshold, n_points)

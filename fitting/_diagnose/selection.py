@@ -197,6 +197,15 @@ def backward_step(current, in_model, steps, best, by_name, held, options, polish
 #: than this fraction of the largest (unit-scaled) column's norm to the span of the columns
 #: before it (pivoted QR): its information is below 1e-8 of the best determined one's.
 UNDETERMINED_PIVOT = 1e-4
+#: A column whose norm is below this fraction of the largest column's is rounding error, not
+#: information: a pressure exponent when every curve has the same ``p r^3``, whose column
+#: ``y log(p r^3 / p_ref r_ref^3)`` is zero but for the last bits of the logarithms.
+#: Unit scaling would blow it up to a column as good as any, parallel to its pivot's
+#: ``log a`` column, and the QR could then keep the exponent and hold the ``log a``: the law
+#: could no longer move (the diagnosis study's design_0_0070 kept its first guess, 43x the
+#: noise floor). A real exponent column is ``|log(s / s_ref)|`` (0.01 or more) times its
+#: ``log a`` column, far above this.
+ROUNDING_COLUMN = 1e-12
 
 
 def least_determined(result: FitResult) -> list[str]:
@@ -209,11 +218,16 @@ def least_determined(result: FitResult) -> list[str]:
     them all would leave nothing to fit."""
     jac = result.jacobian[:, np.asarray(result.problem.free_index)]
     norms = np.linalg.norm(jac, axis=0)
-    _, r, pivots = scipy.linalg.qr(jac / np.maximum(norms, 1e-300), mode="economic",
+    rounding = norms <= ROUNDING_COLUMN * max(float(norms.max(initial=0.0)), 1e-300)
+    kept = np.flatnonzero(~rounding)
+    if kept.size == 0:
+        return list(result.problem.free_names)
+    _, r, pivots = scipy.linalg.qr(jac[:, kept] / norms[kept], mode="economic",
                                    pivoting=True)
     size = np.abs(np.diag(r))
     rank = int(np.sum(size > UNDETERMINED_PIVOT * max(float(size[0]), 1e-300)))
-    return [result.problem.free_names[k] for k in sorted(pivots[rank:])]
+    undetermined = set(kept[pivots[rank:]].tolist()) | set(np.flatnonzero(rounding).tolist())
+    return [result.problem.free_names[k] for k in sorted(undetermined)]
 
 
 def hold_undetermined_where_left(result: FitResult, fit_options):
