@@ -233,3 +233,30 @@ def test_when_every_coordinate_is_flagged_only_the_undetermined_directions_are_h
     assert still_held == held and refits == [tuple(n for n in "abc" if n not in held)]
     fake.jacobian[:, 2] += rng.standard_normal(12)  # determined: nothing is held
     assert selection.least_determined(fake) == []
+    # An exponent at a single p r^3: its column is the rounding of the logarithms (1e-16 of
+    # its pivot's log-a column, in no particular direction). Unit scaling must not make it
+    # information (design_0_0070 of the study held every M[i].A instead and could not move).
+    fake.jacobian[:, 2] = 1e-16 * (columns[:, 0] + rng.standard_normal(12))
+    assert selection.least_determined(fake) == ["c"]
+
+
+def test_the_refined_law_holds_what_the_current_model_holds():
+    """A coordinate the current model holds (the data do not determine it: every exponent at
+    a single ``p r^3``, the collapsed pivot) stays held in the refined law, split with its
+    pivot, so the refinement's size and BIC count only what can move (design_0_0084 of the
+    study, one specimen: 30 points against 20 coordinates kept the refinement out)."""
+    import types
+
+    from fitting._bench.scaling import PivotScaling
+    from fitting._diagnose.refinement import refined_held, refined_scaling, split_parents
+
+    coarse = PivotScaling(pivots_per_regime=(1, 1, 1))
+    fine = refined_scaling(coarse)
+    assert split_parents(coarse) == [0, 0, 1, 1, 2]
+    assert split_parents(fine) == [0, 1, 1, 2, 3, 3, 4]
+    free = ["kappa[1].A", "kappa[2].A", "M[1].A", "M[2].A"]
+    current = types.SimpleNamespace(problem=types.SimpleNamespace(scaling=coarse,
+                                                                  free_names=free))
+    held = refined_held(current, fine)
+    assert held == (["kappa[5].A"] + [f"kappa[{i}].B" for i in range(1, 6)] + ["M[5].A"]
+                    + [f"M[{i}].B" for i in range(1, 6)])

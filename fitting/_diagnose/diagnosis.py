@@ -39,10 +39,15 @@ from .ranking import (
     default_candidates,
     rank_candidates,
 )
-from .refinement import refine_pivots
+from .refinement import PIVOT_REFINEMENTS, refine_pivots
 from .report import diagnosis_report
 from .score import chi2, parameter_names, point_count
-from .selection import backward_step, hold_undetermined_where_left, release_held
+from .selection import (
+    backward_step,
+    hold_undetermined_where_left,
+    release_held,
+    settle,
+)
 from .separation import _effect_values, separation_statements
 from .validation import blocked_cross_validation
 from .verdict import noise_words, verdict_words
@@ -198,6 +203,9 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         # Coordinates the data do not determine only drift (they change chi^2 by less than
         # noise) and make every refit slow: hold them at their baseline values from here on.
         baseline, still_held = hold_undetermined_where_left(baseline, fit_options)
+        # Every ranking starts from its model's optimum (selection.settle).
+        settling = dataclasses.replace(fit_options, max_iterations=options.refit_iterations)
+        baseline = settle(baseline, settling)
         if bar is not None:
             bar.update(1)
         baseline_comparison = compare(baseline)
@@ -214,12 +222,13 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         while True:
             best = ranking[0] if ranking and ranking[0].significant else None
             if best is None and options.refine_pivots and comparison_now.verdict.systematic \
-                    and not any(step.refinement for step in steps):
+                    and sum(step.refinement for step in steps) < PIVOT_REFINEMENTS:
                 refined, held_refined, words = refine_pivots(current, in_model, by_name, data, rig,
                                                fit_options, candidates,
                                                options.bic_threshold, n_points)
                 if refined is not None:
-                    current, comparison_now = refined, compare(refined)
+                    current = settle(refined, settling)
+                    comparison_now = compare(current)
                     still_held = list(held_refined)
                     refined_cv = blocked_cross_validation(current).rmse_N
                     steps.append(DiagnosisStep(
@@ -248,6 +257,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             current, released, words = release_held(current, still_held, polish, n_points)
             still_held = [n for n in still_held if n not in released]
             backward = list(backward) + words
+            current = settle(current, settling)
             # Removed or swapped-out effects do not come back (no cycles); swapped-in ones
             # are in the model.
             remaining = [c for c in remaining if c.name != best.effect
