@@ -1,10 +1,10 @@
 """The sparse KKT routes (KLU on the pattern of the Hessian blocks, and the augmented route)
 against the dense route: the same solutions (1e-9 relative) on a chain (torque, line load,
 self-weight, shear, displacement control) and an arch clamped at both ends with a strut, and
-on the chain the same gradients through the implicit function theorem (the two structures of ``tests/test_solver.py``'s
-Hessian test: a closed ring's closure and a pinned connection use the same code paths as the
-arch's second clamp and the chain's support, and every structure's constraint pattern and
-factors are checked below). Also: the sparse pattern's
+on the chain the same gradients through the implicit function theorem (the two structures
+of ``tests/test_solver.py``'s Hessian test: a closed ring's closure and a pinned connection
+use the same code paths as the arch's second clamp and the chain's support, and every
+structure's constraint pattern and factors are checked below). Also: the sparse pattern's
 matrix equals the dense one, and importing klujax leaves JAX's platform setting alone."""
 
 import os
