@@ -56,15 +56,17 @@ SLOW_FILES = frozenset({
 # The two workers take whole files (``--dist loadfile``), each next file as one finishes, in
 # collection order (``--no-loadscope-reorder``: xdist's default order, most tests first, put
 # the few-test files that compile the most at the very end, where one worker ran them alone).
-# These files run first, costliest first: seconds of one worker on an empty compilation
-# cache, profiled (compile and run) on the CI-sized machine. Only the order depends on them.
+# These files run first, costliest first: their tests' seconds on a clean clone's CI run (empty
+# compilation cache, the CI-sized machine; compile and run). Only the order depends on them.
 COSTLIEST_FIRST = (
-    "test_sparse_kkt.py", "test_dynamics_time.py", "test_sweep.py", "test_user_effect.py",
-    "test_solver.py", "test_fitting.py", "test_experiments.py", "test_beam_references.py",
-    "test_dynamics_modes.py", "test_effects.py", "test_shape_diagnose.py",
-    "test_diagnose_effects.py", "test_gradients.py", "test_diagnose_controls.py",
-    "test_notebook.py", "test_dead_load_drive.py", "test_members.py",
-    "test_convergence_honesty.py", "test_hung_frame.py", "test_kite.py",
+    "test_diagnose_controls.py", "test_dynamics_time.py", "test_experiments.py",
+    "test_diagnose_designs.py", "test_user_effect.py", "test_sweep.py", "test_sparse_kkt.py",
+    "test_notebook.py", "test_diagnosis_trust.py", "test_dynamics_modes.py",
+    "test_diagnose_effects.py", "test_solver.py", "test_fitting.py", "test_v3_hanging.py",
+    "test_shape_diagnose.py", "test_gradients.py", "test_effects.py", "test_dynamics_cli.py",
+    "test_shape_smooth.py", "test_beam_references.py", "test_kite_fem_hang.py",
+    "test_members.py", "test_dead_load_drive.py", "test_convergence_honesty.py",
+    "test_hung_frame.py", "test_kite.py", "test_batched_newton.py", "test_v3_import.py",
 )
 
 
