@@ -37,7 +37,7 @@ jax.config.update("jax_compilation_cache_dir", str(_CACHE))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
-# The fast tier (``python -m pytest -m "not slow"``, about 2.5 minutes warm) leaves out these
+# The fast tier (``python -m pytest -m "not slow"``, about 2 minutes warm) leaves out these
 # files whole: each runs fits, diagnoses, subprocesses or study-sized solves, or compiles a
 # large program of its own (a minute or more warm). A single slow test elsewhere carries
 # ``@pytest.mark.slow`` itself. CI runs everything.
