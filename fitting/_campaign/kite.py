@@ -105,13 +105,11 @@ def with_model_values(campaign: Campaign, params: jt.StructureParameters,
     return params
 
 
-def campaign_bending_law(law_form: str) -> jt.ScaledLaw:
+def campaign_bending_law() -> jt.ScaledLaw:
     """Breukels' 2011 bending law as every tube of a campaign's kite carries it:
     ``ScaledLaw(CurvatureScaledLaw(law, a), b)``, ``M(kappa) = b M_2011(a kappa)`` (factors
     1 here; :func:`with_model_values` sets them): one structure for both law forms and every
-    value, so one compiled program serves them all. ``law_form`` is checked here."""
-    if law_form not in ("curvature", "moment"):
-        raise ValueError(f"law_form: expected 'curvature' or 'moment', found {law_form!r}")
+    value, so one compiled program serves them all."""
     return jt.ScaledLaw(jt.CurvatureScaledLaw(jt.EmpiricalBendingLaw2011(), 1.0), 1.0)
 
 
@@ -120,6 +118,8 @@ def _bending_law_with(law, law_form: str, bending, collapse):
     collapse factor ``c`` = ``collapse``: the initial stiffness ``s EI0`` in either form, the
     wrinkling and collapse moments ``c M_max`` (curvature form: ``M = c M(s kappa / c)``) or
     ``c s M_max`` (moment form: ``M = c s M(kappa / c)``). Traced factors welcome."""
+    if law_form not in ("curvature", "moment"):
+        raise ValueError(f"law_form: expected 'curvature' or 'moment', found {law_form!r}")
     outer, inner = ((collapse, bending / collapse) if law_form == "curvature"
                     else (bending * collapse, 1.0 / collapse))
     return eqx.tree_at(lambda law: (law.factor, law.base.factor), law,
@@ -212,7 +212,7 @@ def with_values(model: KiteModel, names, values) -> KiteModel:
 def import_campaign_case(campaign: Campaign, case: CampaignCase,
                          model: KiteModel) -> jt.KiteFemImport:
     """The campaign's kite at ``case``'s pressure with its loads and ``model``'s values."""
-    law = campaign_bending_law(model.law_form)
+    law = campaign_bending_law()
     suspension = campaign.suspension
     # The importer's own V3 loads stay off (zero masses; its load nodes are set to a
     # suspension node so that they exist in any model): the case's loads follow.

@@ -176,10 +176,9 @@ class CaseSolver:
         if missing:
             raise ValueError(f"tangents: {sorted(missing)} not among the solver's "
                              f"tangent_values {list(names)}")
-        if (case.name, model.law_form) not in self._plain:  # the same for every value
-            self._plain[case.name, model.law_form] = import_campaign_case(
-                self.campaign, case, KiteModel(model.law_form))
-        plain = self._plain[case.name, model.law_form]
+        if case.name not in self._plain:  # the same for every value and law form
+            self._plain[case.name] = import_campaign_case(self.campaign, case, KiteModel())
+        plain = self._plain[case.name]
         theta = jnp.asarray(search_coordinates(names, [model_value(model, n) for n in names]))
         start = self._last.get(case.name) if self.warm_starts else None
         jacobian, x, converged = self._tangent_solve(plain, case, model, names, theta, start)
