@@ -11,7 +11,6 @@ value of the candidates, :class:`fitting.CaseSolver` ``tangent_values``).
 
 import argparse
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -19,11 +18,6 @@ from scipy.spatial.transform import Rotation
 
 import fitting
 import jaxtube as jt
-from fitting._campaign.calibrate import (
-    _search_standard_errors,
-    likelihood_ratio_chi2,
-    profiled_objective_mm2,
-)
 from fitting._cli.shape import add_shape
 
 from .kite_fem_mini import mini_kite_arrays, write_mini_kite
@@ -224,44 +218,3 @@ def _model_json(folder, model):
     path = folder / "model.json"
     path.write_text(json.dumps({"model": model.to_json()}))
     return path
-
-
-def test_one_variance_per_case_is_the_pooled_one_when_the_cases_are_alike():
-    """The statistics' noise model (one unknown variance per case, profiled out): with every
-    case's residuals alike, the standard errors are the pooled least squares' ``s² (JᵀJ)⁻¹``
-    and the likelihood ratio is the pooled one; scaling one case's residuals (a worse
-    photograph, or a case the model fits worse) leaves the likelihood ratio as it is, where
-    the pooled ratio would follow the case with the larger misfit."""
-    rng = np.random.default_rng(3)
-    k, cases, n = 2, ("a", "b", "c"), 40
-    rows = {c: (n * i, n * (i + 1)) for i, c in enumerate(cases)}
-    jacobian = np.zeros((n * len(cases), k + 6 * len(cases)))
-    jacobian[:, :k] = rng.normal(size=(n * len(cases), k))
-    for i in range(len(cases)):
-        jacobian[n * i:n * (i + 1), k + 6 * i:k + 6 * i + 6] = rng.normal(size=(n, 6))
-    alike = np.concatenate([r / np.sqrt(np.mean(r ** 2)) for r in rng.normal(size=(3, n))])
-    errors, correlation = _search_standard_errors(jacobian, 0.01 * alike, rows, k)
-    pooled = 1e-4 * alike @ alike / (len(alike) - jacobian.shape[1]) * np.linalg.inv(
-        jacobian.T @ jacobian)[:k, :k]
-    np.testing.assert_allclose(errors, np.sqrt(np.diag(pooled)), rtol=1e-12)
-    np.testing.assert_allclose(correlation, pooled / np.outer(errors, errors), rtol=1e-12)
-
-    def fit(squares):
-        return SimpleNamespace(case_sum_squares_m2=dict(zip(cases, squares)),
-                               case_residual_counts=dict.fromkeys(cases, n))
-
-    before, after = np.array([4.0, 4.0, 4.0]), np.array([3.0, 3.0, 3.0])
-    chi2 = likelihood_ratio_chi2(fit(before), fit(after))
-    assert chi2 == pytest.approx(3 * n * np.log(before.sum() / after.sum()), rel=1e-12)
-    worse = np.array([100.0, 1.0, 1.0])
-    assert likelihood_ratio_chi2(fit(worse * before), fit(worse * after)) == pytest.approx(
-        chi2, rel=1e-12)
-    uneven = np.array([4.0, 4.0, 3.0])  # only case c improves; case a is the worse photo
-    assert likelihood_ratio_chi2(fit(worse * before), fit(worse * uneven)) == pytest.approx(
-        likelihood_ratio_chi2(fit(before), fit(uneven)), rel=1e-12)
-    # Pooled, case a's misfit drowns case c's gain.
-    pooled_ratio = [3 * n * np.log((w * before).sum() / (w * uneven).sum())
-                    for w in (1, worse)]
-    assert pooled_ratio[1] < 0.05 * pooled_ratio[0]
-    assert profiled_objective_mm2(dict(zip(cases, np.sqrt(before))),
-                                  dict.fromkeys(cases, n)) == pytest.approx(4.0)

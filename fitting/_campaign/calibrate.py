@@ -1,45 +1,29 @@
 """A campaign's model values fitted to its calibration cases by gradient, with standard
 errors and a statement for every value the cases do not determine.
 
-**Noise model: one unknown variance per case.** Each case is its own photograph, with its
-own registration, photogrammetry and marker placement, and a model's error differs from
-load case to load case; so the tube markers' smooth distances of case ``c`` are taken as
-independent with their own variance ``sigma_c²``. Profiled over the ``sigma_c``, the
-log-likelihood is ``-1/2 sum_c n_c ln SSE_c`` plus a constant (``n_c`` the case's tube
-markers, ``SSE_c`` their distances' sum of squares; Box & Draper 1965, "The Bayesian
-estimation of common parameters from several responses", Biometrika 52, for independent
-responses), so no case can buy the others' fit with its own larger misfit: a case's residuals
-weigh as ``1 / RMS_c²``. When every case's RMS is alike it is the pooled least squares of
-one variance.
-
-**Objective.** The geometric mean over the calibration cases' tube markers of the squared
-smooth marker RMS, ``exp(sum_c n_c ln RMS_c² / sum_c n_c)`` [mm²] (its logarithm is the
-negative profiled log-likelihood over ``sum_c n_c / 2``; :func:`fitting.smooth_shape_score`:
-the peers' metric with the radius continuous along each tube, re-registered at every
-evaluation: the first by the full search of :func:`fitting.register`, every later one
-iterated from the case's last registration), as a function of the fitted values' search
-coordinates (:func:`fitting.search_coordinates`: the logarithm of a factor such as
-``"bending_scale"`` or ``"rest_length_factors.SET"``; a mass or an offset such as
-``"point_masses_kg.POINT"`` or ``"pressure_offset_bar"`` as it is). Its gradient is each
-case's position gradient at the optimal registration times the equilibrium's tangents
-(:meth:`fitting.CaseSolver.tangents`: implicit function theorem). Search: damped
-Gauss-Newton (Levenberg) on the markers' distances, each case's rows weighted by ``1 /
-RMS_c`` at the current values (iteratively reweighted least squares), the registrations'
-six numbers per case in the step and solved again at every trial (variable projection),
-each step clipped to the values' bounds; it stops when a step lowers the root of the
-objective by less than ``RMS_TOLERANCE_MM`` or moves the coordinates by less than 1e-5, or
-when no damping lowers it. Every evaluation solves each case from its last equilibrium
-(:class:`fitting.CaseSolver` ``warm_starts``).
+**Objective.** The mean over the calibration cases of the squared smooth marker RMS
+(:func:`fitting.smooth_shape_score`: the peers' metric with the radius continuous along each
+tube, re-registered at every evaluation: the first by the full search of
+:func:`fitting.register`, every later one iterated from the case's last registration), in
+mm², as a function of the fitted values' search coordinates
+(:func:`fitting.search_coordinates`: the logarithm of a factor such as ``"bending_scale"``
+or ``"rest_length_factors.SET"``; a mass or an offset such as ``"point_masses_kg.POINT"`` or
+``"pressure_offset_bar"`` as it is). Its gradient is each case's position gradient at the
+optimal registration times the equilibrium's tangents (:meth:`fitting.CaseSolver.tangents`:
+implicit function theorem). Search: damped Gauss-Newton (Levenberg) on the markers'
+distances, the registrations' six numbers per case in the step and solved again at every
+trial (variable projection), each step clipped to the values' bounds; it stops when a step
+lowers the root of the objective by less than ``RMS_TOLERANCE_MM`` or moves the coordinates
+by less than 1e-5, or when no damping lowers it. Every evaluation solves each case from its
+last equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
 
 **Standard errors** (Gauss-Newton at the optimum): the residuals are the tube markers'
 smooth surface distances of every case; their Jacobian has a column per fitted value
 (distances' position gradient times the tangents) and six per case for that case's rigid
-registration (a nuisance parameter, so the values' uncertainty includes it). Case ``c``'s
-variance is ``s_c² = (SSE_c / n_c) M / (M - k - 6 C)`` (its maximum-likelihood variance
-with the degrees of freedom of all ``M`` residuals: one variance for every case when the
-cases' RMS are alike, the pooled ``SSE / (M - k - 6 C)``); with ``W`` the rows' weights
-``1 / s_c²`` the covariance is ``(Jᵀ W J)⁻¹`` and the values' block gives their standard
-errors in search coordinates (a relative error of a factor; a mass's or an offset's own).
+registration (a nuisance parameter, so the values' uncertainty includes it). With ``s²``
+the residuals' sum of squares over ``M - k - 6 C`` degrees of freedom, the covariance is
+``s² (JᵀJ)⁻¹`` and the values' block gives their standard errors in search coordinates (a
+relative error of a factor; a mass's or an offset's own).
 
 **Not determined**: a factor whose relative standard error exceeds
 ``UNDETERMINED_RELATIVE_ERROR`` (the cases cannot tell it within a factor of about 1.6), a
@@ -72,7 +56,7 @@ from .kite import (
 from .model import KiteModel
 from .solve import CaseSolver
 
-#: The search stops when a step lowers the root of the objective by less than this
+#: The search stops when a step lowers the root of the mean square RMS by less than this
 #: [mm]: far below what photogrammetric markers resolve.
 RMS_TOLERANCE_MM = 0.01
 UNDETERMINED_RELATIVE_ERROR = 0.5
@@ -99,10 +83,9 @@ class CampaignCalibration:
         rms_mm_before, rms_mm_after: ``{case: smooth RMS [mm]}`` at the start and the end.
         converged: the search met its tolerance; message: its message.
         evaluations: objective evaluations.
-        case_sum_squares_m2: ``{case: SSE_c [m²]}`` the sum of squares of each case's tube
-            markers' smooth distances at the end; case_residual_counts: ``{case: n_c}`` how
-            many; residual_count: ``M``, their total; degrees_of_freedom: ``M`` less the
-            values and six registration numbers per case.
+        residual_sum_squares_m2: the tube markers' smooth distances' sum of squares [m²]
+            over every case at the end; residual_count: how many; degrees_of_freedom: that
+            count less the values and six registration numbers per case.
         least_squares: at the end, ``(jacobian [M, k + 6 C], residual [M] [m], {case: (first
             row, last row + 1)})``: the tube markers' smooth distances of every case and
             their Jacobian in the values' search coordinates and each case's registration
@@ -121,8 +104,7 @@ class CampaignCalibration:
     converged: bool
     message: str
     evaluations: int
-    case_sum_squares_m2: dict
-    case_residual_counts: dict
+    residual_sum_squares_m2: float
     residual_count: int
     degrees_of_freedom: int
     least_squares: tuple = dataclasses.field(default=(), repr=False, compare=False)
@@ -136,26 +118,6 @@ class CampaignCalibration:
                 "statements": list(self.statements), "converged": self.converged,
                 "message": self.message, "evaluations": self.evaluations,
                 "rms_mm_before": self.rms_mm_before, "rms_mm_after": self.rms_mm_after}
-
-
-def profiled_objective_mm2(rms_mm: dict, counts: dict) -> float:
-    """The objective [mm²] of cases with RMS ``rms_mm`` ``{case: mm}`` over ``counts``
-    ``{case: n_c}`` tube markers: ``exp(sum_c n_c ln RMS_c² / sum_c n_c)``, the markers'
-    geometric mean of the squared RMS (module docstring: the profiled likelihood of one
-    variance per case)."""
-    total = sum(counts[c] for c in rms_mm)
-    return float(np.exp(sum(counts[c] * np.log(np.square(r)) for c, r in rms_mm.items())
-                        / total))
-
-
-def likelihood_ratio_chi2(smaller: CampaignCalibration, larger: CampaignCalibration) -> float:
-    """Twice the log of the profiled likelihood ratio of ``larger`` (a model with more values
-    fitted to the same cases) against ``smaller``: ``sum_c n_c ln(SSE_c,smaller /
-    SSE_c,larger)``, one unknown variance per case (module docstring); chi² distributed
-    with as many degrees of freedom as the added values under the smaller model (Wilks
-    1938)."""
-    return float(sum(n * np.log(smaller.case_sum_squares_m2[c] / larger.case_sum_squares_m2[c])
-                     for c, n in larger.case_residual_counts.items()))
 
 
 def value_bounds(name: str) -> tuple:
@@ -185,7 +147,6 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     markers = {c: load_markers(campaign.case(c).markers) for c in cases}
     evaluations = []
     registrations = {}  # each case's last registration: the next one starts from it
-    counts = {}  # each case's tube markers
 
     def evaluate(theta):
         values = values_from_search(names, theta)
@@ -201,13 +162,10 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                 canopy_group=campaign.canopy_group, start=registrations.get(case)))
             registrations[case] = states[case][2].registration.registration
             per_case[case] = states[case][2].rms_mm
-            counts.setdefault(case, int(np.sum(registrations[case].surface_groups(
-                markers[case], campaign_tube_surfaces(campaign, positions)) >= 0)))
-        total = profiled_objective_mm2(per_case, counts)
+        total = float(np.mean(np.square(list(per_case.values()))))
         evaluations.append((theta.copy(), total, per_case, states))
-        rms = ", ".join(f"{c} {r:.1f}" for c, r in per_case.items())
-        log(f"{', '.join(f'{n} {v:.4f}' for n, v in zip(names, values))}: geometric mean "
-            f"square RMS {total:.1f} mm^2 ({rms})")
+        log(f"{', '.join(f'{n} {v:.4f}' for n, v in zip(names, values))}: mean square RMS "
+            f"{total:.1f} mm^2 ({', '.join(f'{c} {r:.1f}' for c, r in per_case.items())})")
         return evaluations[-1]
 
     current = evaluate(np.clip(search_coordinates(names, [model_value(model, n)
@@ -217,9 +175,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     damping, converged, message = 1e-3, False, f"stopped after {max_steps} steps"
     for _ in range(max_steps):
         theta, total, _, states = current
-        jacobian, residual, rows = _least_squares_system(campaign, markers, states,
-                                                         len(names))
-        jacobian, residual = _weighted(jacobian, residual, rows, case_weights(residual, rows))
+        jacobian, residual, _ = _least_squares_system(campaign, markers, states, len(names),
+                                                      per_case_weight=True)
         normal = jacobian.T @ jacobian
         gradient = jacobian.T @ residual
         trial = None
@@ -246,8 +203,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     theta, _, per_case, states = current
     values = values_from_search(names, theta)
     jacobian, residual, rows = _least_squares_system(campaign, markers, states, len(names))
-    search_errors, correlation = _search_standard_errors(jacobian, residual, rows,
-                                                         len(names))
+    search_errors, correlation, residuals = _search_standard_errors(jacobian, residual,
+                                                                    len(names))
     errors = np.asarray([e if is_offset(n) else v * e
                          for n, v, e in zip(names, values, search_errors)])
     statements = []
@@ -269,11 +226,7 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     return CampaignCalibration(with_values(model, names, values), names, values,
                                errors, correlation, tuple(statements),
                                evaluations[0][2], per_case, converged, message,
-                               len(evaluations),
-                               {c: float(residual[a:b] @ residual[a:b])
-                                for c, (a, b) in rows.items()},
-                               {c: b - a for c, (a, b) in rows.items()}, len(residual),
-                               len(residual) - jacobian.shape[1], (jacobian, residual, rows))
+                               len(evaluations), *residuals, (jacobian, residual, rows))
 
 
 @eqx.filter_jit
@@ -293,11 +246,13 @@ def _distances_and_jacobians(surfaces, registration, points, point_groups, posit
     return distances(*arguments), jax.jacrev(distances, argnums=(0, 1, 2))(*arguments)
 
 
-def _least_squares_system(campaign, markers, states, k):
+def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
     """``(jacobian [M, k + 6 C], residual [M], {case: (first row, last row + 1)})`` of the
     tube markers' smooth distances [m] of every case: columns for the ``k`` values' search
     coordinates (distances' position gradient times the equilibrium's tangents), then six
-    per case for its registration (rotation vector, translation)."""
+    per case for its registration (rotation vector, translation). ``per_case_weight``: each
+    case's rows divided by ``sqrt(m_c C)`` (then the sum of squares is the mean over cases
+    of the squared RMS)."""
     blocks, residuals = [], []
     for case, (positions, tangents, score) in states.items():
         surfaces = continuous_radius(campaign_tube_surfaces(campaign, positions))
@@ -316,42 +271,26 @@ def _least_squares_system(campaign, markers, states, k):
     row, rows = 0, {}
     for c, (case, (by_value, by_registration)) in enumerate(zip(states, blocks)):
         rows[case] = (row, row + len(by_value))
-        jacobian[row:row + len(by_value), :k] = by_value
-        jacobian[row:row + len(by_value), k + 6 * c:k + 6 * c + 6] = by_registration
+        weight = 1.0 / np.sqrt(len(by_value) * len(blocks)) if per_case_weight else 1.0
+        jacobian[row:row + len(by_value), :k] = weight * by_value
+        jacobian[row:row + len(by_value), k + 6 * c:k + 6 * c + 6] = weight * by_registration
+        residuals[c] = weight * residuals[c]
         row += len(by_value)
     return jacobian, np.concatenate(residuals), rows
 
 
-def case_weights(residual, rows, degrees_of_freedom=None) -> dict:
-    """``{case: 1 / s_c}`` each case's rows' weight: ``s_c²`` its residuals' mean square
-    [m²] (``residual`` ``[M]`` [m], ``rows`` ``{case: (first row, last row + 1)}``), times
-    ``M / degrees_of_freedom`` when given (module docstring)."""
-    correction = 1.0 if degrees_of_freedom is None else len(residual) / max(
-        degrees_of_freedom, 1)
-    return {c: 1.0 / np.sqrt(correction * np.mean(np.square(residual[a:b])))
-            for c, (a, b) in rows.items()}
-
-
-def _weighted(jacobian, residual, rows, weights):
-    """``jacobian`` ``[M, p]`` and ``residual`` ``[M]`` with each case's rows times its
-    ``weights[case]``."""
-    row_weight = np.empty(len(residual))
-    for case, (first, last) in rows.items():
-        row_weight[first:last] = weights[case]
-    return jacobian * row_weight[:, None], residual * row_weight
-
-
-def _search_standard_errors(jacobian, residual, rows, k):
-    """Standard errors of the values in search coordinates and their correlation
-    (Gauss-Newton over the markers' smooth distances ``residual`` [M] with ``jacobian``
-    ``[M, k + 6 C]``, each case's registration a nuisance parameter and its own variance:
-    module docstring)."""
+def _search_standard_errors(jacobian, residual, k):
+    """Standard errors of the values in search coordinates, their correlation (Gauss-Newton
+    over the markers' smooth distances ``residual`` with ``jacobian``: each case's
+    registration a nuisance parameter) and ``(sum of squares [m²], residual count, degrees
+    of freedom)``."""
     count, columns = jacobian.shape
-    weighted, _ = _weighted(jacobian, residual, rows,
-                            case_weights(residual, rows, count - columns))
-    normal = weighted.T @ weighted
+    squares = float(residual @ residual)
+    residuals = (squares, count, count - columns)
+    variance = squares / max(count - columns, 1)
+    normal = jacobian.T @ jacobian
     if np.linalg.cond(normal) > 1e14:
-        return np.full(k, np.nan), np.full((k, k), np.nan)
-    covariance = np.linalg.inv(normal)[:k, :k]
+        return np.full(k, np.nan), np.full((k, k), np.nan), residuals
+    covariance = variance * np.linalg.inv(normal)[:k, :k]
     errors = np.sqrt(np.diag(covariance))
-    return errors, covariance / np.outer(errors, errors)
+    return errors, covariance / np.outer(errors, errors), residuals

@@ -19,16 +19,12 @@ values (the last optimum), the candidate's at its null (1 for a factor, 0 for a 
 offset, clipped into its plausible range), and every solve from the case's last
 equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
 
-**Statistics** (as the curve diagnosis, :mod:`fitting._diagnose.ranking`, where they apply),
-with the likelihood of :mod:`fitting._campaign.calibrate`: one unknown noise variance per
-case, profiled out. Each candidate is also fitted to every case; with ``SSE_c`` case ``c``'s
-tube markers' smooth distances' sum of squares over its ``n_c`` markers, ``Delta chi^2 =
-sum_c n_c ln(SSE_c,current / SSE_c,candidate)`` (twice the log-likelihood ratio,
-:func:`fitting._campaign.calibrate.likelihood_ratio_chi2`), the likelihood-ratio p-value
-against ``chi^2_q`` (``q`` the effect's values) and the fall of the BIC ``Delta chi^2 - q ln
-n`` (``n`` every case's markers; Schwarz 1978). The linearised left-out fits weight the other
-cases' rows as the fit does (``1 / RMS_c``); the held-out gain itself is a prediction error,
-the mean square of the left-out cases' RMS.
+**Statistics** (as the curve diagnosis, :mod:`fitting._diagnose.ranking`, where they apply):
+each candidate is also fitted to every case; with ``RSS`` the tube markers' smooth distances'
+sum of squares over ``n`` markers, the noise variance ``s² = RSS_candidate / dof`` (the
+larger model's residuals; the registrations count six each), ``Delta chi^2 = (RSS_current -
+RSS_candidate) / s²``, the likelihood-ratio p-value against ``chi^2_q`` (``q`` the effect's
+values) and the fall of the BIC ``Delta chi^2 - q ln n`` (Schwarz 1978).
 
 **Decision** (all must hold): the held-out gain is positive; the p-value is below ``alpha``
 divided by the candidates still in play (Bonferroni); the BIC falls by more than
@@ -52,15 +48,7 @@ from scipy.stats import chi2
 from .._json import finite_or_none
 from .._shape.markers import load_markers
 from .._shape.smooth import smooth_shape_score
-from .calibrate import (
-    CampaignCalibration,
-    calibrate_campaign,
-    case_weights,
-    likelihood_ratio_chi2,
-    on_bound,
-    profiled_objective_mm2,
-    value_bounds,
-)
+from .calibrate import CampaignCalibration, calibrate_campaign, on_bound, value_bounds
 from .file import Campaign
 from .kite import campaign_tube_surfaces, search_coordinates
 from .model import KiteModel
@@ -171,9 +159,8 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
         found = calibrate_campaign(campaign, start, names, on, solver, bounds=bounds,
                                    max_steps=FIT_STEPS, log=quiet)
         log(f"  fit of {', '.join(names)} to {len(on)} cases: {found.evaluations} "
-            f"evaluations, {time.perf_counter() - started:.1f} s, geometric mean square RMS "
-            f"{profiled_objective_mm2(found.rms_mm_after, found.case_residual_counts):.1f} "
-            "mm^2")
+            f"evaluations, {time.perf_counter() - started:.1f} s, mean square RMS "
+            f"{np.mean(np.square(list(found.rms_mm_after.values()))):.1f} mm^2")
         if bar is not None:
             bar.update(1)
         return found
@@ -257,8 +244,9 @@ def _rank(effect, current, current_square, names, bounds, scored, in_play):
         return ShapeCandidateRanking(effect, {}, math.nan, math.nan, math.nan, math.nan, None,
                                 (f"a fit failed: {error}",))
     gain = current_square - float(np.mean(np.square(list(rms.values()))))
+    variance = full.residual_sum_squares_m2 / max(full.degrees_of_freedom, 1)
     q = len(effect.values)
-    delta = likelihood_ratio_chi2(current, full)
+    delta = (current.residual_sum_squares_m2 - full.residual_sum_squares_m2) / variance
     p_value = float(chi2.sf(max(delta, 0.0), q))
     bic_fall = delta - q * math.log(full.residual_count)
     reasons = []
@@ -282,14 +270,10 @@ def _rank(effect, current, current_square, names, bounds, scored, in_play):
 def linearised_held_out(fit: CampaignCalibration, bounds: dict) -> dict:
     """``{case: smooth RMS [mm]}`` of each of ``fit``'s cases when its values are fitted to
     the others, from ``fit.least_squares`` alone: one Gauss-Newton step from the optimum on
-    the other cases' rows (their registrations free; each case's rows weighted by ``1 /
-    RMS_c`` as in the fit), clipped to ``bounds`` (``{name: (low, high)}``), applied to the
-    left-out case's residuals in the same linearisation, and that case re-registered (its
-    six registration columns projected out)."""
+    the other cases' rows (their registrations free), clipped to ``bounds`` (``{name: (low,
+    high)}``), applied to the left-out case's residuals in the same linearisation, and that
+    case re-registered (its six registration columns projected out)."""
     jacobian, residual, rows = fit.least_squares
-    weights = case_weights(residual, rows)
-    row_weight = np.concatenate([np.full(last - first, weights[case])
-                                 for case, (first, last) in rows.items()])
     k = len(fit.names)
     theta = search_coordinates(fit.names, fit.values)
     low = search_coordinates(fit.names, [bounds[n][0] for n in fit.names])
@@ -300,9 +284,7 @@ def linearised_held_out(fit: CampaignCalibration, bounds: dict) -> dict:
         others[first:last] = False
         free = np.ones(jacobian.shape[1], bool)
         free[k + 6 * c:k + 6 * c + 6] = False
-        weighted = jacobian[others][:, free] * row_weight[others, None]
-        step = -np.linalg.lstsq(weighted, residual[others] * row_weight[others],
-                                rcond=None)[0]
+        step = -np.linalg.lstsq(jacobian[others][:, free], residual[others], rcond=None)[0]
         step = np.clip(theta + step[:k], low, high) - theta
         own = jacobian[first:last]
         moved = residual[first:last] + own[:, :k] @ step
