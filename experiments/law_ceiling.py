@@ -19,21 +19,16 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-import fitting as ft
+from experiments._study_design import add_design_arguments, design_setup
 from fitting._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from fitting._bench.scaling import PivotScaling
 from fitting._calibrate.fit import fit_problem
-from fitting._calibrate.noise import estimate_noise_with_error
 from fitting._calibrate.problem import make_problem
-from fitting._diagnose.ranking import _fit_options, default_candidates
-from fitting._diagnose.score import chi2, parameter_names
-from fitting._study.designs import make_design_data
+from fitting._diagnose.score import chi2
 
 #: The diagnosis' parameter of each hidden effect (sizes are drawn in its units).
 HIDDEN_PARAMETER = {"shear": "shear.flexibility", "reinforcement": "reinforcement.stiffness",
@@ -53,29 +48,14 @@ def on_bounds(result) -> list[str]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--index", type=int, default=13, help="design index (default 13)")
-    parser.add_argument("--seed", type=int, default=0, help="study seed (default 0)")
+    add_design_arguments(parser, 13)
     parser.add_argument("--starts", type=int, default=6,
                         help="starts of the multistart fit (default 6)")
-    parser.add_argument("--iterations", type=int, default=150,
-                        help="Levenberg-Marquardt cap per start (default 150)")
     args = parser.parse_args(argv)
-    design = ft.draw_study_design(args.index, args.seed)
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "design.csv"
-        made = make_design_data(design, path, with_snr=False)
-        data = ft.load_measurements(path)
-    floor = made.noise_floor_N
-    print(f"{design.name}: {design.specimens}, {design.points} points, hidden "
-          f"{dict(design.hidden) or 'none'}, noise floor {floor:.4g} N")
-    candidates = default_candidates(PivotScaling())
-    held = {name: p.null for c in candidates
-            for name, p in zip(parameter_names(c), c.parameters)}
-    fit_options = dataclasses.replace(
-        _fit_options(ft.DiagnoseOptions(progress=False),
-                     estimate_noise_with_error(data).noise_N, args.iterations), fixed=held)
-    problem = make_problem(data, PivotScaling(), CantileverRig(segments=DEFAULT_SEGMENTS),
-                           fit_options, effects=candidates)
+    setup = design_setup(args.index, args.seed, args.iterations)
+    design, floor, fit_options = setup.design, setup.noise_floor_N, setup.fit_options
+    problem = make_problem(setup.data, PivotScaling(), CantileverRig(segments=DEFAULT_SEGMENTS),
+                           fit_options, effects=setup.candidates)
     law = list(problem.free_names)
     print(f"{'fit':<48}{'RMSE/floor':>11}{'chi2':>9}{'s':>6}  on a bound")
 
