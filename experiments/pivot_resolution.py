@@ -15,46 +15,24 @@ design's noise floor.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-import fitting as ft
+from experiments._study_design import add_design_arguments, design_setup
 from fitting._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from fitting._bench.scaling import PivotScaling
 from fitting._calibrate.fit import fit_problem
-from fitting._calibrate.noise import estimate_noise_with_error
 from fitting._calibrate.problem import make_problem
-from fitting._diagnose.ranking import _fit_options, default_candidates
 from fitting._diagnose.refinement import refined_scaling, refined_start
-from fitting._diagnose.score import parameter_names
-from fitting._study.designs import make_design_data
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--index", type=int, default=84, help="design index (default 84)")
-    parser.add_argument("--seed", type=int, default=0, help="study seed (default 0)")
-    parser.add_argument("--iterations", type=int, default=150,
-                        help="Levenberg-Marquardt cap per fit (default 150)")
+    add_design_arguments(parser, 84)
     args = parser.parse_args(argv)
-    design = ft.draw_study_design(args.index, args.seed)
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "design.csv"
-        made = make_design_data(design, path, with_snr=False)
-        data = ft.load_measurements(path)
-    print(f"{design.name}: {design.specimens}, {design.points} points, noise floor "
-          f"{made.noise_floor_N:.4g} N")
-    candidates = default_candidates(PivotScaling())
-    options = ft.DiagnoseOptions(progress=False)
-    held = {name: p.null for c in candidates
-            for name, p in zip(parameter_names(c), c.parameters)}
-    fit_options = dataclasses.replace(
-        _fit_options(options, estimate_noise_with_error(data).noise_N, args.iterations),
-        fixed=held)
+    setup = design_setup(args.index, args.seed, args.iterations)
+    data, candidates, fit_options = setup.data, setup.candidates, setup.fit_options
     rig = CantileverRig(segments=DEFAULT_SEGMENTS)
     single = len({curve.pressure * curve.radius**3 for curve in data}) == 1
     scaling, previous = PivotScaling(), None
@@ -68,7 +46,7 @@ def main(argv=None) -> int:
         started = time.perf_counter()
         result = fit_problem(problem.with_free(names, start), fit_options)
         layout = ",".join(str(n) for n in scaling.pivots_per_regime)
-        print(f"({layout}){'':<3}{result.rmse:>10.4g}{result.rmse / made.noise_floor_N:>9.2f}"
+        print(f"({layout}){'':<3}{result.rmse:>10.4g}{result.rmse / setup.noise_floor_N:>9.2f}"
               f"{result.convergence.iterations:>12}{time.perf_counter() - started:>6.0f}")
         previous, scaling = result, refined_scaling(scaling)
     return 0
