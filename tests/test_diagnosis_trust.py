@@ -186,6 +186,35 @@ def test_noise_only_records_match_the_estimate_the_diagnosis_uses():
     assert (summary["order_2"]["within_supported"] is None) == (not supported)
 
 
+def test_telling_the_two_compliances_apart_takes_three_lengths():
+    """Shear (tip compliance ~ L) and clamp compliance (~ L^2) beside the bending (~ L^3):
+    with the stiffness free, two lengths fit either compliance exactly, and the one not
+    hidden reappears as a constant shift of 1 / EI. Solve the two-length case: the clamp
+    model reproduces pure shear data at both lengths; at a third length it cannot."""
+    lengths = np.array([0.6, 0.8, 1.0])
+    shear, compliance_bending = 2e-4, 0.01  # tip compliance = a L^3 + s L  [m/N]
+    truth = compliance_bending * lengths**3 + shear * lengths
+    two = np.stack([lengths[:2]**3, lengths[:2]**2], axis=1)  # clamp model: a L^3 + c L^2
+    fitted = np.linalg.solve(two, truth[:2])
+    assert np.allclose(two @ fitted, truth[:2], rtol=1e-12)
+    three = np.stack([lengths**3, lengths**2], axis=1)
+    misfit = three @ np.linalg.lstsq(three, truth, rcond=None)[0] - truth
+    assert np.max(np.abs(misfit)) > 1e-2 * shear * lengths.max()  # of the shear's own size
+
+    def design(lengths):
+        return ft.StudyDesign(index=0, seed=0, points=8, noise_force_N=0.1,
+                              noise_deflection_mm=0.05,
+                              specimens=tuple((0.2 + 0.1 * k, 0.075, length)
+                                              for k, length in enumerate(lengths)))
+
+    for effect in ("shear", "clamp_compliance"):
+        assert not design((0.6, 1.2, 0.6)).separable(effect)
+        assert design((0.6, 0.8, 1.2)).separable(effect)
+    # Self-weight's preload needs two lengths only; 1.0 against 1.2 m is not varied (20 %).
+    assert design((0.6, 1.2, 0.6)).separable("self_weight")
+    assert not design((1.0, 1.2, 1.0)).separable("self_weight")
+
+
 def test_the_sampling_ceiling_grows_with_the_points_a_design_has():
     """White noise at a design's deflections: 24 points (three curves of eight) leave the
     order-2 estimate outside 25 % of the realised noise often (15 windows of four points:

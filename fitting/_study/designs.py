@@ -34,9 +34,18 @@ SIZE_RANGES = {"shear": (3e-6, 3e-4), "reinforcement": (0.5, 80.0),
                "clamp_compliance": (1e-5, 1e-3), "self_weight": (0.02, 1.0)}
 PHYSICAL_EFFECTS = tuple(SIZE_RANGES)
 #: The specimen quantities each physical effect needs varied to be told apart from the
-#: law's own pressure and radius scaling (:attr:`fitting.Effect.separated_by`).
-SEPARATED_BY = {"shear": ("length", "pressure"), "reinforcement": ("pressure", "radius"),
-                "clamp_compliance": ("length",), "self_weight": ("length", "pressure")}
+#: law's own pressure and radius scaling (:attr:`fitting.Effect.separated_by`), with the
+#: number of distinct values each needs. Shear and clamp compliance each add a tip compliance
+#: that grows with the length (``L`` and ``L^2``) beside the bending's ``L^3``: at two lengths
+#: the bending stiffness and either compliance fit both slopes exactly (the other compliance's
+#: shows only as a constant shift of ``1 / EI``), so telling them from each other, as the
+#: study's "found with no other effect named" asks, takes three lengths.
+SEPARATED_BY = {"shear": {"length": 3, "pressure": 2},
+                "reinforcement": {"pressure": 2, "radius": 2},
+                "clamp_compliance": {"length": 3},
+                "self_weight": {"length": 2, "pressure": 2}}
+#: A quantity varies when its largest value exceeds its smallest by more than this ratio.
+VARIED_RATIO = 1.2
 PRESSURES_BAR = (0.15, 0.2, 0.25, 0.3, 0.35)
 RADII_M = (0.05, 0.075, 0.1)
 LENGTHS_M = (0.6, 0.8, 1.0, 1.2)
@@ -73,12 +82,13 @@ class StudyDesign:
                 "hidden": {name: size for name, size in self.hidden}}
 
     def separable(self, effect: str) -> bool:
-        """Whether the specimens vary (by more than 20 %) every quantity that tells
-        ``effect`` apart (:data:`SEPARATED_BY`)."""
+        """Whether every quantity that tells ``effect`` apart (:data:`SEPARATED_BY`) varies
+        (by more than :data:`VARIED_RATIO`) over at least the number of distinct values it
+        needs."""
         columns = {"pressure": 0, "radius": 1, "length": 2}
-        for quantity in SEPARATED_BY[effect]:
-            values = [s[columns[quantity]] for s in self.specimens]
-            if max(values) / min(values) <= 1.2:
+        for quantity, needed in SEPARATED_BY[effect].items():
+            values = {s[columns[quantity]] for s in self.specimens}
+            if len(values) < needed or max(values) / min(values) <= VARIED_RATIO:
                 return False
         return True
 
