@@ -37,7 +37,7 @@ PHYSICAL_EFFECTS = tuple(SIZE_RANGES)
 #: law's own pressure and radius scaling (:attr:`fitting.Effect.separated_by`), with the
 #: number of distinct values each needs. Shear and clamp compliance each add a tip compliance
 #: that grows with the length (``L`` and ``L^2``) beside the bending's ``L^3``: at two lengths
-#: the bending stiffness and either compliance fit both slopes exactly (the other compliance's
+#: the bending stiffness and either compliance fit both slopes exactly (the other compliance
 #: shows only as a constant shift of ``1 / EI``), so telling them from each other, as the
 #: study's "found with no other effect named" asks, takes three lengths.
 SEPARATED_BY = {"shear": {"length": 3, "pressure": 2},
