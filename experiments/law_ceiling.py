@@ -28,22 +28,16 @@ from fitting._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from fitting._bench.scaling import PivotScaling
 from fitting._calibrate.fit import fit_problem
 from fitting._calibrate.problem import make_problem
-from fitting._diagnose.score import chi2
-
-#: The diagnosis' parameter of each hidden effect (sizes are drawn in its units).
-HIDDEN_PARAMETER = {"shear": "shear.flexibility", "reinforcement": "reinforcement.stiffness",
-                    "clamp_compliance": "clamp_compliance.compliance",
-                    "self_weight": "self_weight.mass_per_length"}
+from fitting._diagnose.score import chi2, parameter_names
 
 
 def on_bounds(result) -> list[str]:
     """The free coordinates of ``result`` on a bound of their box."""
     problem = result.problem
-    return [name for name in problem.free_names
-            if np.isclose(result.vector[problem.names.index(name)],
-                          problem.lower[problem.names.index(name)])
-            or np.isclose(result.vector[problem.names.index(name)],
-                          problem.upper[problem.names.index(name)])]
+    index = np.asarray(problem.free_index)
+    value = np.asarray(result.vector)[index]
+    ends = np.isclose(value, problem.lower[index]) | np.isclose(value, problem.upper[index])
+    return [name for name, end in zip(problem.free_names, ends) if end]
 
 
 def main(argv=None) -> int:
@@ -71,8 +65,10 @@ def main(argv=None) -> int:
                dataclasses.replace(fit_options, multistart=args.starts))
     if design.hidden:
         truth = np.array(best.vector, float)
+        # Each physical effect has one parameter, in the units its size is drawn in.
+        parameter = {c.name: parameter_names(c)[0] for c in setup.candidates}
         for effect, size in design.hidden:
-            truth[problem.names.index(HIDDEN_PARAMETER[effect])] = size
+            truth[problem.names.index(parameter[effect])] = size
         run("hidden effects at their true size, law refit", truth, fit_options)
     return 0
 
