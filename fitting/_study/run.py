@@ -48,8 +48,9 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     and return its record (a JSON-ready dict): the design, its noise floor, each hidden
     effect's signal-to-noise ratio and whether the design can separate it, the verdict, its
     physical effects (``found``), baseline and final RMSE [N], the noise estimate [N],
-    convergence, the "cannot be told apart" statements by effect, seconds (of the diagnosis;
-    of making the data) and whether this process had diagnosed the same shape before
+    convergence, what restarting the baseline did (``baseline_restart``, None: its first fit
+    ended inside its box), the "cannot be told apart" statements by effect, seconds (of the
+    diagnosis; of making the data) and whether this process had diagnosed the same shape before
     (``warm``: no compilation in those seconds). A diagnosis that raises is recorded with ``error``.
 
     ``candidates``: names to restrict the candidates to (default: all of
@@ -88,6 +89,8 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
         baseline_rmse_N=diagnosis.baseline.rmse, final_rmse_N=diagnosis.final.rmse,
         noise_N=diagnosis.noise, baseline_converged=diagnosis.baseline.convergence.converged,
         final_converged=diagnosis.final.convergence.converged,
+        baseline_restart=(diagnosis.baseline_restart.to_json()
+                          if diagnosis.baseline_restart is not None else None),
         cannot_tell=_told_apart_statements(diagnosis.statements, names),
         seconds=time.perf_counter() - started)
     return record
