@@ -1,22 +1,22 @@
-"""What a change of the diagnosis' rule did to the diagnosis study: the stored records
-(``experiments/results/diagnosis_study/designs/``) against the same designs' records at an
-earlier commit, design by design, and the issue's targets from each (docs/diagnosis-study.md,
-"The baseline's basin").
+"""What a change of the diagnosis' rule did to the diagnosis study: the records of a run with
+the change (``--after``, e.g. ``experiments/results/diagnosis_study/baseline_restart/``)
+against the same designs' records of the rule as it is (``--before``, the study's
+``experiments/results/diagnosis_study/``), design by design, and the issue's targets from
+each (docs/diagnosis-study.md, "The baseline's basin").
 
-    python -m experiments.study_changes --before a50ec1c --designs 85
+    python -m experiments.study_changes --designs 85
 
 Per design whose physical verdict or final RMSE changed: the hidden effect, what was named
 and the final RMSE over the noise floor before and after, and what restarting the baseline
 did (``baseline_restart`` of the record: the restart kept, the chi^2 it gained). A design
-whose baseline was not restarted must be unchanged (the rule leaves its path alone): the
-script says whether it is.
+whose baseline was not restarted, or kept its first fit, must be unchanged (the rule leaves
+its path alone): the script says whether it is.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import subprocess
+from pathlib import Path
 
 import fitting as ft
 from experiments.diagnosis_study import RESULTS
@@ -26,17 +26,10 @@ from experiments.diagnosis_study import RESULTS
 SAME = 1e-6
 
 
-def records_at(revision: str, designs) -> dict[str, dict]:
-    """The records of ``designs`` stored at git ``revision`` (by design name)."""
-    out = {}
-    for design in designs:
-        path = (RESULTS / "designs" / f"{design.name}.json").relative_to(
-            RESULTS.parents[2])
-        shown = subprocess.run(["git", "show", f"{revision}:{path}"], capture_output=True,
-                               text=True, cwd=RESULTS.parents[2])
-        if shown.returncode == 0:
-            out[design.name] = json.loads(shown.stdout)
-    return out
+def records_in(folder: Path, designs) -> dict[str, dict]:
+    """The records of ``designs`` stored under ``folder/designs`` (by design name)."""
+    return {d.name: r for d in designs
+            if (r := ft.stored_study_record(folder / "designs" / f"{d.name}.json", d))}
 
 
 def _ratio(record: dict) -> float:
@@ -56,18 +49,19 @@ def _targets(records) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--before", default="a50ec1c", help="git revision of the old records")
+    parser.add_argument("--before", type=Path, default=RESULTS,
+                        help=f"results of the rule as it is (default {RESULTS})")
+    parser.add_argument("--after", type=Path, default=RESULTS / "baseline_restart",
+                        help="results with the change (default BEFORE/baseline_restart)")
     parser.add_argument("--designs", type=int, default=85, help="first N designs (default 85)")
     parser.add_argument("--seed", type=int, default=0, help="study seed (default 0)")
     args = parser.parse_args(argv)
     designs = [ft.draw_study_design(i, args.seed) for i in range(args.designs)]
-    before = records_at(args.before, designs)
-    after = {d.name: r for d in designs
-             if (r := ft.stored_study_record(RESULTS / "designs" / f"{d.name}.json", d))}
+    before, after = records_in(args.before, designs), records_in(args.after, designs)
     both = [name for name in after if name in before and after[name].get("error") is None
             and before[name].get("error") is None]
-    print(f"{len(both)} designs diagnosed before ({args.before}) and now")
-    print(f"  {'design':<15}{'hidden':<30}{'before':>22}{'now':>22}  baseline restart")
+    print(f"{len(both)} designs diagnosed by both rules")
+    print(f"  {'design':<15}{'hidden':<30}{'before':>30}{'after':>30}  baseline restart")
     changed = better = worse = 0
     unrestarted, unrestarted_same = 0, 0
     for name in both:
@@ -75,7 +69,7 @@ def main(argv=None) -> int:
         restart = new.get("baseline_restart")
         same = (old["found"] == new["found"]
                 and abs(_ratio(new) / _ratio(old) - 1.0) <= SAME)
-        if not restart:
+        if not restart or restart["kept"] == 0:
             unrestarted += 1
             unrestarted_same += same
         if same:
@@ -87,15 +81,16 @@ def main(argv=None) -> int:
                  "first fit kept" if restart["kept"] == 0 else
                  f"restart {restart['kept']} kept, chi^2 -{restart['chi2_gain']:.4g}")
         print(f"  {name:<15}{new['hidden']:<30}"
-              f"{old['found'] + f', {_ratio(old):.2f}x':>22}"
-              f"{new['found'] + f', {_ratio(new):.2f}x':>22}  {words}")
+              f"{old['found'] + f', {_ratio(old):.2f}x':>30}"
+              f"{new['found'] + f', {_ratio(new):.2f}x':>30}  {words}")
     restarted = [after[n]["baseline_restart"] for n in both if after[n].get("baseline_restart")]
     print(f"changed: {changed} (final RMSE lower in {better}, higher in {worse}); baseline "
           f"restarted in {len(restarted)} of {len(both)} (a restart kept in "
-          f"{sum(r['kept'] > 0 for r in restarted)}); not restarted and unchanged: "
+          f"{sum(r['kept'] > 0 for r in restarted)}); baseline as before (not restarted, or "
+          "first fit kept) and outcome unchanged: "
           f"{unrestarted_same} of {unrestarted}")
     print(f"before: {_targets([before[n] for n in both])}")
-    print(f"now:    {_targets([after[n] for n in both])}")
+    print(f"after:  {_targets([after[n] for n in both])}")
     return 0
 
 

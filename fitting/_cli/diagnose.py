@@ -102,10 +102,10 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--no-refine", action="store_true",
                         help="do not refine the law's pivots when no candidate is significant "
                              "and the residuals are still systematic")
-    parser.add_argument("--baseline-starts", type=positive_int, default=4,
+    parser.add_argument("--baseline-starts", type=positive_int, default=1,
                         help="starts of the baseline fit when its first fit ends with law "
                              "coordinates on their box bounds, the first included; the best "
-                             "is kept (default 4; 1: no restart)")
+                             "is kept (default 1: no restart; see docs/diagnosis-study.md)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 

@@ -43,7 +43,8 @@ def _told_apart_statements(statements, names) -> dict[str, list[str]]:
 
 
 def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None,
-                    segments: int | None = None) -> dict:
+                    segments: int | None = None,
+                    baseline_starts: int = DiagnoseOptions.baseline_starts) -> dict:
     """Make the design's data (:func:`fitting._study.designs.make_design_data`), diagnose it
     and return its record (a JSON-ready dict): the design, its noise floor, each hidden
     effect's signal-to-noise ratio and whether the design can separate it, the verdict, its
@@ -54,7 +55,8 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     (``warm``: no compilation in those seconds). A diagnosis that raises is recorded with ``error``.
 
     ``candidates``: names to restrict the candidates to (default: all of
-    :func:`fitting.default_candidates`); ``segments``: the model tube's segments."""
+    :func:`fitting.default_candidates`); ``segments``: the model tube's segments;
+    ``baseline_starts``: :class:`fitting.DiagnoseOptions` ``baseline_starts``."""
     scaling = PivotScaling()
     chosen = default_candidates(scaling)
     if candidates is not None:
@@ -76,7 +78,9 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     try:
         diagnosis = diagnose(data, scaling=scaling,
                              rig=CantileverRig(segments=segments or DEFAULT_SEGMENTS),
-                             options=DiagnoseOptions(progress=False), candidates=chosen)
+                             options=DiagnoseOptions(progress=False,
+                                                     baseline_starts=baseline_starts),
+                             candidates=chosen)
     except Exception as error:  # noqa: BLE001 (recorded: the study goes on)
         record.update(error=f"{type(error).__name__}: {error}",
                       traceback=traceback.format_exc(limit=4),
