@@ -21,7 +21,9 @@ its ``--before`` record (its path is the rule as it is).
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from pathlib import Path
+from statistics import median
 
 import fitting as ft
 from experiments.diagnosis_study import RESULTS
@@ -108,6 +110,12 @@ def main(argv=None) -> int:
           f"{sum(r['kept'] > 0 for r in restarted)}); baseline as before (not restarted, or "
           "first fit kept) and outcome unchanged: "
           f"{unrestarted_same} of {unrestarted}")
+    if restarted:
+        counts = Counter(name for r in restarted for name in r["on_bounds"])
+        seconds = [r["seconds"] for r in restarted]
+        print("first fits' coordinates on their box: " + ", ".join(
+            f"{name} {count}" for name, count in counts.most_common())
+              + f"; restarts' seconds median {median(seconds):.0f}, largest {max(seconds):.0f}")
     print(f"before: {_targets([before[n] for n in both])}")
     print(f"after:  {_targets([after[n] for n in both])}")
     return 0
