@@ -85,7 +85,8 @@ TOPICS: dict[str, dict[str, tuple[str, ...]]] = {
         ),
         "Comparison and diagnosis": (
             "compare", "Comparison", "Group", "ResidualVerdict", "diagnose", "Diagnosis",
-            "DiagnosisStep", "DiagnoseOptions", "CandidateRanking", "default_candidates",
+            "DiagnosisStep", "DiagnoseOptions", "BaselineRestart", "CandidateRanking",
+            "default_candidates",
             "score_test", "ScoreTest", "likelihood_ratio_p_value", "blocked_cross_validation",
             "CrossValidation", "cross_validated_rmse",
         ),

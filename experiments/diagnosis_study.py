@@ -17,6 +17,8 @@ written from every stored record of the drawn designs.
     python -m experiments.diagnosis_study --designs 300 --workers 2
     python -m experiments.diagnosis_study --designs 300 --report-only   # tables only
     python -m experiments.diagnosis_study --designs 300 --noise-only    # the noise estimate
+    python -m experiments.diagnosis_study --designs 85 --baseline-starts 4 \
+        --results experiments/results/diagnosis_study/baseline_restart  # the restart measured
 
 ``--noise-only`` makes each design's data and compares the model-free noise estimate of
 difference orders 1, 2 (the default) and 3 with the noise floor, without a diagnosis
@@ -50,6 +52,11 @@ def main(argv=None) -> int:
                         help=f"output directory (default {RESULTS}, _quick for --quick)")
     parser.add_argument("--noise-only", action="store_true",
                         help="only the noise estimate against the floor (no diagnosis)")
+    parser.add_argument("--baseline-starts", type=int,
+                        default=ft.DiagnoseOptions.baseline_starts,
+                        help="DiagnoseOptions.baseline_starts: starts of the baseline when its "
+                             "first fit ends on its box (default "
+                             f"{ft.DiagnoseOptions.baseline_starts}: no restart)")
     parser.add_argument("--report-only", action="store_true",
                         help="write the tables (and figure) from the stored records, run "
                              "nothing")
@@ -65,7 +72,8 @@ def main(argv=None) -> int:
     else:
         with ft.open_cluster_client(args.scheduler, args.workers) as client:
             client.run(jt.enable_compilation_cache)
-            records, ran = ft.run_study(designs, results / "designs", client)
+            records, ran = ft.run_study(designs, results / "designs", client,
+                                        baseline_starts=args.baseline_starts)
         print(f"ran {ran} designs; {count - ran} were stored already", file=sys.stderr)
     summary = ft.study_summary(records)
     summary["seed"], summary["drawn"] = args.seed, count

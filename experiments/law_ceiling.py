@@ -28,16 +28,8 @@ from fitting._bench.rig import DEFAULT_SEGMENTS, CantileverRig
 from fitting._bench.scaling import PivotScaling
 from fitting._calibrate.fit import fit_problem
 from fitting._calibrate.problem import make_problem
+from fitting._diagnose.restart import on_box_bounds
 from fitting._diagnose.score import chi2, parameter_names
-
-
-def on_bounds(result) -> list[str]:
-    """The free coordinates of ``result`` on a bound of their box."""
-    problem = result.problem
-    index = np.asarray(problem.free_index)
-    value = np.asarray(result.vector)[index]
-    ends = np.isclose(value, problem.lower[index]) | np.isclose(value, problem.upper[index])
-    return [name for name, end in zip(problem.free_names, ends) if end]
 
 
 def main(argv=None) -> int:
@@ -57,7 +49,7 @@ def main(argv=None) -> int:
         started = time.perf_counter()
         result = fit_problem(problem.with_free(law, vector), options)
         print(f"{label:<48}{result.rmse / floor:>11.2f}{chi2(result):>9.1f}"
-              f"{time.perf_counter() - started:>6.0f}  {', '.join(on_bounds(result)) or '-'}")
+              f"{time.perf_counter() - started:>6.0f}  {', '.join(on_box_bounds(result)) or '-'}")
         return result
 
     run("from the physics guess (the baseline's start)", problem.base, fit_options)

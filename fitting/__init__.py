@@ -73,6 +73,7 @@ from ._data import DataError, DataProblem, MeasuredCurve, MeasuredData, load_mea
 from ._diagnose.compare import Comparison, Group, ResidualVerdict, compare
 from ._diagnose.diagnosis import Diagnosis, DiagnosisStep, diagnose
 from ._diagnose.ranking import CandidateRanking, DiagnoseOptions, default_candidates
+from ._diagnose.restart import BaselineRestart
 from ._diagnose.score import (
     ScoreTest,
     likelihood_ratio_p_value,
@@ -124,7 +125,8 @@ __all__ = [
     "BUILT_IN_EFFECTS", "MODEL_EXTENSIONS", "ClampCompliance", "Effect", "EffectParameter",
     "RadiusScaling", "Reinforcement", "SelfWeight", "Shear", "ScoreTest", "score_test",
     "UnwrinkledLinearity",
-    "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis", "DiagnosisStep", "Group",
+    "BaselineRestart", "CandidateRanking", "Comparison", "DiagnoseOptions", "Diagnosis",
+    "DiagnosisStep", "Group",
     "ResidualVerdict", "compare", "default_candidates", "diagnose",
     "fit_problem",
     "before_after_figure", "fit_figure", "ranking_figure", "where_it_fails_figure",

@@ -102,6 +102,10 @@ def _add_common(parser, default_out) -> None:
     parser.add_argument("--no-refine", action="store_true",
                         help="do not refine the law's pivots when no candidate is significant "
                              "and the residuals are still systematic")
+    parser.add_argument("--baseline-starts", type=positive_int, default=1,
+                        help="starts of the baseline fit when its first fit ends with law "
+                             "coordinates on their box bounds, the first included; the best "
+                             "is kept (default 1: no restart; see docs/diagnosis-study.md)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -137,6 +141,7 @@ def run_diagnose(args) -> int:
         options = DiagnoseOptions(noise_N=args.noise_N,
                                   max_additions=args.max_additions,
                                   refine_pivots=not args.no_refine,
+                                  baseline_starts=args.baseline_starts,
                                   progress=not args.quiet)
         rig = CantileverRig(segments=args.segments or DEFAULT_SEGMENTS)
         print(f"diagnosing {len(data)} curves ({data.point_count} points) from {args.data}; "

@@ -41,6 +41,7 @@ from .ranking import (
 )
 from .refinement import PIVOT_REFINEMENTS, refine_pivots
 from .report import diagnosis_report
+from .restart import BaselineRestart, restart_on_box
 from .score import chi2, parameter_names, point_count
 from .selection import (
     backward_step,
@@ -110,6 +111,7 @@ class Diagnosis:
     noise_given: bool
     options: DiagnoseOptions
     noise_estimate: NoiseEstimate | None = None
+    baseline_restart: BaselineRestart | None = None
 
     @property
     def final(self) -> FitResult:
@@ -147,6 +149,8 @@ class Diagnosis:
             "points": point_count(self.baseline),
             "candidates_considered": list(self.candidates),
             "baseline": model(self.baseline, self.baseline_comparison, self.baseline_cv_rmse_N),
+            "baseline_restart": (self.baseline_restart.to_json()
+                                 if self.baseline_restart is not None else None),
             "steps": [{"added": s.added, "rmse_N": s.fit.rmse, "removed": list(s.removed),
                        "in_model": list(s.in_model), "backward": list(s.backward),
                        "released": list(s.released), "refinement": s.refinement,
@@ -178,6 +182,8 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         scaling, user_effects)
     if not candidates:
         raise ValueError("no candidates to diagnose")
+    if options.baseline_starts < 1:
+        raise ValueError(f"baseline_starts must be >= 1, got {options.baseline_starts}")
     held = {name: p.null for c in candidates
             for name, p in zip(parameter_names(c), c.parameters)}
     # One noise for every model: the user's, or the model-free estimate. Given to every fit,
@@ -200,6 +206,9 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
         if bar is not None:
             bar.set_postfix_str("baseline")
         baseline = fit_problem(problem, fit_options)
+        # A first fit that ends on its box stopped at the box, not at the law's optimum:
+        # restart it and keep the best (restart.py).
+        baseline, restart = restart_on_box(baseline, fit_options, options.baseline_starts)
         # Coordinates the data do not determine only drift (they change chi^2 by less than
         # noise) and make every refit slow: hold them at their baseline values from here on.
         baseline, still_held = hold_undetermined_where_left(baseline, fit_options)
@@ -309,7 +318,7 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
                      verdict=verdict, statements=tuple(statements),
                      candidates=tuple(c.name for c in candidates), stop_reason=stop_reason,
                      noise_given=options.noise_N is not None, options=options,
-                     noise_estimate=noise_estimate)
+                     noise_estimate=noise_estimate, baseline_restart=restart)
 
 
 __all__ = ["Diagnosis", "DiagnosisStep", "diagnose"]

@@ -50,6 +50,8 @@ def diagnosis_report(diagnosis) -> str:
     worst = base.worst_groups(3)
     lines.append("  worst groups: " + "; ".join(f"{g.quantity} {g.label}: RMSE {g.rmse_N:.3g} "
                                                f"N, bias {g.bias_N:+.3g} N" for g in worst))
+    if diagnosis.baseline_restart is not None:
+        lines.append("  restarted: " + diagnosis.baseline_restart.words())
     for k, step in enumerate(diagnosis.steps):
         lines.append("")
         if step.refinement:

@@ -43,17 +43,20 @@ def _told_apart_statements(statements, names) -> dict[str, list[str]]:
 
 
 def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None,
-                    segments: int | None = None) -> dict:
+                    segments: int | None = None,
+                    baseline_starts: int = DiagnoseOptions.baseline_starts) -> dict:
     """Make the design's data (:func:`fitting._study.designs.make_design_data`), diagnose it
     and return its record (a JSON-ready dict): the design, its noise floor, each hidden
     effect's signal-to-noise ratio and whether the design can separate it, the verdict, its
     physical effects (``found``), baseline and final RMSE [N], the noise estimate [N],
-    convergence, the "cannot be told apart" statements by effect, seconds (of the diagnosis;
-    of making the data) and whether this process had diagnosed the same shape before
+    convergence, what restarting the baseline did (``baseline_restart``, None: its first fit
+    ended inside its box), the "cannot be told apart" statements by effect, seconds (of the
+    diagnosis; of making the data) and whether this process had diagnosed the same shape before
     (``warm``: no compilation in those seconds). A diagnosis that raises is recorded with ``error``.
 
     ``candidates``: names to restrict the candidates to (default: all of
-    :func:`fitting.default_candidates`); ``segments``: the model tube's segments."""
+    :func:`fitting.default_candidates`); ``segments``: the model tube's segments;
+    ``baseline_starts``: :class:`fitting.DiagnoseOptions` ``baseline_starts``."""
     scaling = PivotScaling()
     chosen = default_candidates(scaling)
     if candidates is not None:
@@ -75,7 +78,9 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
     try:
         diagnosis = diagnose(data, scaling=scaling,
                              rig=CantileverRig(segments=segments or DEFAULT_SEGMENTS),
-                             options=DiagnoseOptions(progress=False), candidates=chosen)
+                             options=DiagnoseOptions(progress=False,
+                                                     baseline_starts=baseline_starts),
+                             candidates=chosen)
     except Exception as error:  # noqa: BLE001 (recorded: the study goes on)
         record.update(error=f"{type(error).__name__}: {error}",
                       traceback=traceback.format_exc(limit=4),
@@ -88,6 +93,8 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
         baseline_rmse_N=diagnosis.baseline.rmse, final_rmse_N=diagnosis.final.rmse,
         noise_N=diagnosis.noise, baseline_converged=diagnosis.baseline.convergence.converged,
         final_converged=diagnosis.final.convergence.converged,
+        baseline_restart=(diagnosis.baseline_restart.to_json()
+                          if diagnosis.baseline_restart is not None else None),
         cannot_tell=_told_apart_statements(diagnosis.statements, names),
         seconds=time.perf_counter() - started)
     return record

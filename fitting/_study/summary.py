@@ -83,11 +83,16 @@ def study_summary(records) -> dict:
         return ({f"q{int(q * 100):02d}": float(np.quantile(values, q))
                  for q in (0.05, 0.25, 0.5, 0.75, 0.95)} if values.size else {})
 
+    restarted = [r["baseline_restart"] for r in done if r.get("baseline_restart")]
+    gains = np.array([r["chi2_gain"] for r in restarted if r["kept"] > 0])
     return {
         "designs": len(records), "diagnosed": len(done), "failed": len(failed),
         "failures": {r["name"]: r["error"] for r in failed},
         "final_not_converged": sum(not r["final_converged"] for r in done),
         "baseline_not_converged": sum(not r["baseline_converged"] for r in done),
+        "baseline_restarted": {"designs": len(restarted), "restart_kept": int(gains.size),
+                               "chi2_gain_median": (float(np.median(gains)) if gains.size
+                                                    else None)},
         "confusion": {"hidden": hidden_labels, "found": found_labels,
                       "counts": [[confusion[h, f] for f in found_labels] for h in hidden_labels]},
         "false_alarm": {"nulls": len(nulls), "false_alarms": false_alarms,
@@ -122,7 +127,15 @@ def study_report(summary: dict) -> str:
     s = summary
     lines = [f"designs: {s['designs']} ({s['diagnosed']} diagnosed, {s['failed']} failed); "
              f"final model not converged in {s['final_not_converged']}, baseline in "
-             f"{s['baseline_not_converged']}", ""]
+             f"{s['baseline_not_converged']}"]
+    restart = s.get("baseline_restarted", {})
+    if restart.get("designs"):
+        lines.append(
+            f"baseline restarted (first fit on its box) in {restart['designs']}: a restart kept "
+            f"in {restart['restart_kept']}" + (
+                f", chi^2 lower by {restart['chi2_gain_median']:.3g} noise units (median)"
+                if restart["chi2_gain_median"] is not None else ""))
+    lines.append("")
     confusion = s["confusion"]
     width = max([len(f) for f in confusion["found"]] + [8]) + 2
     lines.append("confusion (rows: hidden; columns: physical effects named)")
