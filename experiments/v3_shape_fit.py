@@ -1,11 +1,11 @@
-"""One V3 calibration fit, timed warm: the values the diagnosis ends with (the bending law's
-factor, the trailing edge's rest lengths, the leading edge's bending; ``--values``) fitted
-to the five 0.15 bar cases from the plain model (Breukels' 2011 law unscaled, the model
-file's trailing edge), every solve from the case's last equilibrium
-(:class:`fitting.CaseSolver` ``warm_starts=True``, the default); ``--cold``: the same fit
-again with every solve by the case's route from the model file's shape, in the same process.
-The programs are compiled ahead by a first solve of every case, so every second counted is
-warm.
+"""One V3 calibration fit, timed warm: five of the values the diagnosis ends with (the bending
+law's factor, the front bridle's and the trailing edge's rest lengths, the torsion law's
+factor, the struts' bending; ``--values``) fitted to the five 0.15 bar cases from the plain
+model (Breukels' 2011 law unscaled, the model file's line lengths), every solve from the
+case's last equilibrium (:class:`fitting.CaseSolver` ``warm_starts=True``, the default);
+``--cold``: the same fit again with every solve by the case's route from the model file's
+shape, in the same process. The programs are compiled ahead by a first solve of every case,
+so every second counted is warm.
 
 Prints and writes ``experiments/results/v3_shape_fit.txt``: per fit its wall time,
 evaluations, values and per case the Newton iterations and seconds per solve.
@@ -23,8 +23,8 @@ import jaxtube as jt
 
 ROOT = Path(__file__).resolve().parent
 CASES = ["P1_S", "P1_PL1", "P1_PL2", "P1_TL1", "P1_TL2"]
-VALUES = ("bending_scale", "rest_length_factors.trailing_edge",
-          "bending_class_factors.leading_edge")
+VALUES = ("bending_scale", "rest_length_factors.front_bridle",
+          "rest_length_factors.trailing_edge", "torsion_scale", "bending_class_factors.struts")
 
 
 def fit(campaign, values, warm: bool, steps: int) -> tuple:
