@@ -174,10 +174,8 @@ class DiagnoseOptions:
     residuals are still systematic, try the law with one more unwrinkled and wrinkled pivot
     (:mod:`fitting._diagnose.refinement`); baseline_starts: starts of the baseline's fit
     when its first fit ends with coordinates on their box bounds (the first fit included; the
-    fit of lowest chi^2 is kept; :mod:`fitting._diagnose.restart`); default 1, no restart:
-    over the diagnosis study's 85 designs, 4 starts raised the false alarms on null designs
-    above the 5 % target (docs/diagnosis-study.md, "The baseline's basin"); progress:
-    progress bars.
+    fit of lowest chi^2 is kept; :mod:`fitting._diagnose.restart`); default 1, no restart
+    (why: docs/diagnosis-study.md, "The baseline's basin"); progress: progress bars.
     """
 
     alpha: float = 0.01

@@ -33,17 +33,12 @@ from .._calibrate.fit import fit_problem, perturbed_starts
 from .._calibrate.problem import FitError
 from .._calibrate.result import FitResult
 from .._json import finite_or_none
-from .score import chi2
+from .score import chi2, names_on_bounds
 
 
 def on_box_bounds(result: FitResult) -> list[str]:
-    """The free coordinates of ``result`` that end on a bound of their box (lower or upper,
-    to ``numpy.isclose``)."""
-    problem = result.problem
-    index = np.asarray(problem.free_index, dtype=int)
-    value = np.asarray(result.vector, float)[index]
-    ends = np.isclose(value, problem.lower[index]) | np.isclose(value, problem.upper[index])
-    return [name for name, end in zip(problem.free_names, ends) if end]
+    """The free coordinates of ``result`` that end on a bound of their box."""
+    return names_on_bounds(result.problem, result.vector, result.problem.free_names)
 
 
 @dataclasses.dataclass(frozen=True)

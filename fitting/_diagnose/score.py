@@ -43,6 +43,15 @@ def _data_rows(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
     return result.residual[:n_data], result.jacobian[:n_data]
 
 
+def names_on_bounds(problem, vector, names) -> list[str]:
+    """Those of ``names`` whose value in the full ``vector`` sits on a bound of the problem's
+    box (lower or upper, to ``numpy.isclose``)."""
+    index = [problem.names.index(name) for name in names]
+    value = np.asarray(vector, float)[index]
+    ends = np.isclose(value, problem.lower[index]) | np.isclose(value, problem.upper[index])
+    return [name for name, end in zip(names, ends) if end]
+
+
 def _lower_bound(problem, name: str) -> float:
     return float(problem.lower[problem.names.index(name)])
 

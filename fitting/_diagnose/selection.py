@@ -14,7 +14,13 @@ from .._calibrate.fit import fit_problem
 from .._calibrate.outcome import FitOutcome
 from .._calibrate.problem import FitError
 from .._calibrate.result import FitResult
-from .score import chi2, dispersion, likelihood_ratio_p_value, parameter_names
+from .score import (
+    chi2,
+    dispersion,
+    likelihood_ratio_p_value,
+    names_on_bounds,
+    parameter_names,
+)
 
 #: A competitor replaces an earlier addition when it lowers the BIC by more than this
 #: ("positive" evidence on the scale of Kass & Raftery 1995; it keeps near-ties from swapping).
@@ -29,26 +35,14 @@ SWAP_SHORTLIST = 0.5
 def bound_count(problem, names) -> int:
     """How many of ``names`` have their null value (their value in ``problem.base``) on a
     bound: those make the likelihood-ratio test a boundary mixture."""
-    count = 0
-    for name in names:
-        i = problem.names.index(name)
-        value = problem.base[i]
-        count += bool(np.isclose(value, problem.lower[i]) or np.isclose(value, problem.upper[i]))
-    return count
+    return len(names_on_bounds(problem, problem.base, names))
 
 
 def _ended_on_a_bound(problem, names, refit) -> bool:
     """Whether the refit failed or left some parameter of ``names`` on a bound: still on a
     null that is a bound (where a projected step may have stalled), or pushed to the edge of
     its box (a basin other than the physical one)."""
-    if refit is None:
-        return True
-    for name in names:
-        i = problem.names.index(name)
-        value = refit.vector[i]
-        if np.isclose(value, problem.lower[i]) or np.isclose(value, problem.upper[i]):
-            return True
-    return False
+    return refit is None or bool(names_on_bounds(problem, refit.vector, names))
 
 
 def refit_candidate(problem, names, effect, fit_options):
