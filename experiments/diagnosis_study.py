@@ -19,6 +19,8 @@ written from every stored record of the drawn designs.
     python -m experiments.diagnosis_study --designs 300 --noise-only    # the noise estimate
     python -m experiments.diagnosis_study --designs 85 --baseline-starts 4 \
         --results experiments/results/diagnosis_study/baseline_restart  # the restart measured
+    python -m experiments.diagnosis_study --designs 85 --noise-order 3 \
+        --results experiments/results/diagnosis_study/noise_order_3  # the estimator's order
 
 ``--noise-only`` makes each design's data and compares the model-free noise estimate of
 difference orders 1, 2 (the default) and 3 with the noise floor, without a diagnosis
@@ -57,6 +59,9 @@ def main(argv=None) -> int:
                         help="DiagnoseOptions.baseline_starts: starts of the baseline when its "
                              "first fit ends on its box (default "
                              f"{ft.DiagnoseOptions.baseline_starts}: no restart)")
+    parser.add_argument("--noise-order", type=int, default=ft.DiagnoseOptions.noise_order,
+                        help="DiagnoseOptions.noise_order: the model-free noise estimate's "
+                             f"difference order (default {ft.DiagnoseOptions.noise_order})")
     parser.add_argument("--report-only", action="store_true",
                         help="write the tables (and figure) from the stored records, run "
                              "nothing")
@@ -73,7 +78,8 @@ def main(argv=None) -> int:
         with ft.open_cluster_client(args.scheduler, args.workers) as client:
             client.run(jt.enable_compilation_cache)
             records, ran = ft.run_study(designs, results / "designs", client,
-                                        baseline_starts=args.baseline_starts)
+                                        baseline_starts=args.baseline_starts,
+                                        noise_order=args.noise_order)
         print(f"ran {ran} designs; {count - ran} were stored already", file=sys.stderr)
     summary = ft.study_summary(records)
     summary["seed"], summary["drawn"] = args.seed, count

@@ -10,12 +10,19 @@ mm², as a function of the fitted values' search coordinates
 or ``"rest_length_factors.SET"``; a mass or an offset such as ``"point_masses_kg.POINT"`` or
 ``"pressure_offset_bar"`` as it is). Its gradient is each case's position gradient at the
 optimal registration times the equilibrium's tangents (:meth:`fitting.CaseSolver.tangents`:
-implicit function theorem). Search: damped Gauss-Newton (Levenberg) on the markers'
-distances, the registrations' six numbers per case in the step and solved again at every
-trial (variable projection), each step clipped to the values' bounds; it stops when a step
-lowers the root of the objective by less than ``RMS_TOLERANCE_MM`` or moves the coordinates
-by less than 1e-5, or when no damping lowers it. Every evaluation solves each case from its
-last equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
+implicit function theorem). Search: Gauss-Newton on the markers' distances in a trust
+region (Moré 1978; Nocedal & Wright 2006, ch. 4 and 10), the registrations' six numbers per
+case projected out of each step and solved again at every trial (variable projection), each
+step clipped to the values' bounds. The region is a ball in the search coordinates (a unit
+per factor's logarithm, a quarter of its bounds per mass or offset), of radius
+``INITIAL_RADIUS`` at first; it shrinks to a quarter of the step where the fall of the mean
+square RMS is under a quarter of the linear model's prediction and doubles where it is over
+three quarters at the boundary, so a far trial is not solved again and again. It stops when
+a step lowers the root of the objective by less than ``RMS_TOLERANCE_MM`` or moves the
+coordinates by less than 1e-5, or when the radius falls below ``MIN_RADIUS`` (a minimum,
+unless a case did not converge at the last trial: then the fit is reported not converged).
+Every evaluation solves each case from its last equilibrium (:class:`fitting.CaseSolver`
+``warm_starts``), the cases in threads (``threads``).
 
 **Standard errors** (Gauss-Newton at the optimum): the residuals are the tube markers'
 smooth surface distances of every case; their Jacobian has a column per fitted value
@@ -35,6 +42,9 @@ beyond ``UNSEPARATED_CORRELATION`` are said not to be separated by the cases.
 from __future__ import annotations
 
 import dataclasses
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import equinox as eqx
 import jax
@@ -59,6 +69,10 @@ from .solve import CaseSolver
 #: The search stops when a step lowers the root of the mean square RMS by less than this
 #: [mm]: far below what photogrammetric markers resolve.
 RMS_TOLERANCE_MM = 0.01
+#: The search's first trust radius and the one below which it gives up, in scaled search
+#: coordinates (:func:`_search_scale`: 0.7 is a factor of 2 on one value).
+INITIAL_RADIUS = 0.7
+MIN_RADIUS = 1e-4
 UNDETERMINED_RELATIVE_ERROR = 0.5
 UNSEPARATED_CORRELATION = 0.99
 #: Plausible bounds of each kind of value (factors on the model file's values).
@@ -136,10 +150,12 @@ def on_bound(name: str, value: float, bounds: tuple) -> bool:
 
 def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                        solver: CaseSolver, bounds=None, max_steps: int = 20,
-                       log=print) -> CampaignCalibration:
+                       log=print, threads: int | None = None) -> CampaignCalibration:
     """Fit ``model``'s values ``names`` to ``cases`` (names, each with markers), starting
     from ``model`` (module docstring). ``bounds``: ``{name: (low, high)}`` (default
-    :func:`value_bounds`)."""
+    :func:`value_bounds`); ``threads``: cases solved at once in an evaluation (default one
+    per core, at most one per case: each solve is a compiled program on one core)."""
+    threads = threads or max(1, min(len(cases), os.cpu_count() or 1))
     names = tuple(names)
     bounds = {n: (bounds or {}).get(n, value_bounds(n)) for n in names}
     low = search_coordinates(names, [bounds[n][0] for n in names])
@@ -148,20 +164,31 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     evaluations = []
     registrations = {}  # each case's last registration: the next one starts from it
 
+    seconds = {}  # each case's last solve and score: the longest start first
+
+    def solved(case, current):
+        """``(positions, tangents, score)`` of ``case`` with ``current`` (None: no
+        equilibrium)."""
+        started = time.perf_counter()
+        positions, tangents, converged = solver.tangents(campaign.case(case), current, names)
+        score = None if not converged else smooth_shape_score(
+            campaign_tube_surfaces(campaign, positions), markers[case],
+            canopy_group=campaign.canopy_group, start=registrations.get(case))
+        seconds[case] = time.perf_counter() - started
+        return None if score is None else (positions, tangents, score)
+
     def evaluate(theta):
         values = values_from_search(names, theta)
         current = with_values(model, names, values)
-        per_case, states = {}, {}
-        for case in cases:
-            positions, tangents, converged = solver.tangents(campaign.case(case), current,
-                                                             names)
-            if not converged:
-                return None
-            states[case] = (positions, tangents, smooth_shape_score(
-                campaign_tube_surfaces(campaign, positions), markers[case],
-                canopy_group=campaign.canopy_group, start=registrations.get(case)))
-            registrations[case] = states[case][2].registration.registration
-            per_case[case] = states[case][2].rms_mm
+        order = sorted(cases, key=lambda case: -seconds.get(case, 0.0))
+        with ThreadPoolExecutor(threads) as pool:  # compiled programs release the GIL
+            done = dict(zip(order, pool.map(lambda case: solved(case, current), order)))
+        states = {case: done[case] for case in cases}
+        if any(state is None for state in states.values()):
+            return None
+        for case, state in states.items():
+            registrations[case] = state[2].registration.registration
+        per_case = {case: state[2].rms_mm for case, state in states.items()}
         total = float(np.mean(np.square(list(per_case.values()))))
         evaluations.append((theta.copy(), total, per_case, states))
         log(f"{', '.join(f'{n} {v:.4f}' for n, v in zip(names, values))}: mean square RMS "
@@ -172,25 +199,38 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                                                          for n in names]), low, high))
     if current is None:
         raise RuntimeError(f"calibrate: a case does not converge at the start ({model})")
-    damping, converged, message = 1e-3, False, f"stopped after {max_steps} steps"
+    scale = _search_scale(names, bounds)
+    radius, converged, message = INITIAL_RADIUS, False, f"stopped after {max_steps} steps"
     for _ in range(max_steps):
         theta, total, _, states = current
         jacobian, residual, _ = _least_squares_system(campaign, markers, states, len(names),
                                                       per_case_weight=True)
-        normal = jacobian.T @ jacobian
-        gradient = jacobian.T @ residual
-        trial = None
-        while damping < 1e8:
-            step = -np.linalg.solve(normal + damping * np.diag(np.diag(normal)), gradient)
-            candidate = np.clip(theta + step[:len(names)], low, high)
-            trial = evaluate(candidate) if np.any(candidate != theta) else None
-            if trial is not None and trial[1] < total:
-                damping = max(damping / 3, 1e-9)
+        reduced = _projected_system(jacobian, residual, len(names))
+        trial, unsolved = None, False
+        while radius > MIN_RADIUS:
+            candidate = np.clip(theta + _trust_region_step(*reduced, scale, radius), low, high)
+            length = float(np.linalg.norm((candidate - theta) / scale))
+            if length == 0.0:
                 break
-            damping *= 4
+            predicted = 1e6 * _predicted_fall(*reduced, candidate - theta)  # mm^2
+            trial = evaluate(candidate)
+            unsolved = trial is None
+            actual = -np.inf if unsolved else total - trial[1]
+            ratio = actual / predicted if predicted > 0 else -np.inf
+            if ratio < 0.25:
+                radius = 0.25 * length
+            elif ratio > 0.75 and length > 0.9 * radius:
+                radius = 2.0 * radius
+            if actual > 0:
+                break
             trial = None
+        if trial is None and unsolved:
+            message = ("the trust region shrank below its smallest radius with a case that "
+                       "does not converge at the last trial: no minimum established")
+            break
         if trial is None:
-            converged, message = True, "no damped Gauss-Newton step lowers the RMS: a minimum"
+            converged, message = True, ("no step within the trust region lowers the RMS: a "
+                                        "minimum")
             break
         moved = np.max(np.abs(trial[0] - theta))
         current = trial
@@ -277,6 +317,50 @@ def _least_squares_system(campaign, markers, states, k, per_case_weight=False):
         residuals[c] = weight * residuals[c]
         row += len(by_value)
     return jacobian, np.concatenate(residuals), rows
+
+
+def _search_scale(names, bounds) -> np.ndarray:
+    """``[k]`` the unit of each search coordinate in the trust region's norm: 1 for a
+    factor's logarithm, a quarter of its bounds' width for a mass or an offset."""
+    return np.asarray([(bounds[n][1] - bounds[n][0]) / 4 if is_offset(n) else 1.0
+                       for n in names])
+
+
+def _projected_system(jacobian, residual, k):
+    """``(values' Jacobian [M, k], residual [M])`` with the registrations projected out
+    (variable projection: every trial registers each case again, so a step of the values is
+    judged with the registrations' best linear response)."""
+    registration = jacobian[:, k:]
+    basis, singular, _ = np.linalg.svd(registration, full_matrices=False)
+    basis = basis[:, singular > singular[0] * 1e-12] if singular.size else basis[:, :0]
+
+    def project(x):
+        return x - basis @ (basis.T @ x)
+
+    return project(jacobian[:, :k]), project(residual)
+
+
+def _trust_region_step(values_jacobian, residual, scale, radius):
+    """``[k]`` the Gauss-Newton step of the values, or where it is longer than ``radius``
+    (norm of the step over ``scale``) the Levenberg step of that length (Moré 1978: the
+    damping found by bisection of its logarithm)."""
+    scaled = values_jacobian * scale[None, :]
+    step = -np.linalg.lstsq(scaled, residual, rcond=None)[0]
+    if np.linalg.norm(step) <= radius:
+        return step * scale
+    normal, gradient = scaled.T @ scaled, scaled.T @ residual
+    low, high = -30.0, np.log10(max(np.linalg.norm(gradient) / radius, 1e-300))
+    for _ in range(60):  # ||step(damping)|| decreases with the damping
+        middle = 0.5 * (low + high)
+        step = -np.linalg.solve(normal + 10.0 ** middle * np.eye(len(scale)), gradient)
+        low, high = (middle, high) if np.linalg.norm(step) > radius else (low, middle)
+    return -np.linalg.solve(normal + 10.0 ** high * np.eye(len(scale)), gradient) * scale
+
+
+def _predicted_fall(values_jacobian, residual, step):
+    """The fall of the residuals' sum of squares the linear model predicts for ``step``."""
+    after = residual + values_jacobian @ step
+    return float(residual @ residual - after @ after)
 
 
 def _search_standard_errors(jacobian, residual, k):

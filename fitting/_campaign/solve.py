@@ -20,6 +20,7 @@ process (:class:`CaseSolver`), ahead of the first timed solve, so every ``second
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 
 import jax
@@ -71,18 +72,28 @@ class CaseSolution:
     compile_seconds: float
 
 
+#: Newton steps a warm start may take before :meth:`CaseSolver.tangents` gives it up for the
+#: case's route: about what the route takes from the undeformed shape (60 to 230 steps, 1 to
+#: 4 s on the V3 cases), so a warm start far from its equilibrium costs no more than the
+#: route itself (``experiments/v3_shape_fit.py``).
+WARM_NEWTON_STEPS = 100
+
 # Compiled programs of this process, shared by every CaseSolver of the same kite and hang
 # schedule (a V3 program takes a minute or more to compile): key -> (program, seconds).
 _PROGRAMS: dict = {}
 
 
+_COMPILING = threading.Lock()
+
+
 def _compiled(key, function, *arguments):
     """``(program, compile seconds)`` of ``function`` at ``arguments``, compiled once per
-    process under ``key``."""
-    if key not in _PROGRAMS:
-        started = time.perf_counter()
-        program = jax.jit(function).lower(*arguments).compile()
-        _PROGRAMS[key] = (program, time.perf_counter() - started)
+    process under ``key`` (cases solved in threads wait for one compilation)."""
+    with _COMPILING:
+        if key not in _PROGRAMS:
+            started = time.perf_counter()
+            program = jax.jit(function).lower(*arguments).compile()
+            _PROGRAMS[key] = (program, time.perf_counter() - started)
     return _PROGRAMS[key]
 
 
@@ -96,15 +107,18 @@ class CaseSolver:
     program per route.
 
     ``warm_starts``: :meth:`tangents` starts each case from its last converged equilibrium
-    (of whatever values it was last solved with) in one full-load solve (the hang route's
-    program, every stage at full load), and falls back to the case's own route from the
-    undeformed shape when that does not converge. :meth:`solve` always takes the route.
+    (of whatever values it was last solved with) in one full-load solve of at most
+    ``WARM_NEWTON_STEPS`` Newton steps (its own program, shared by every route), and falls
+    back to the case's own route from the undeformed shape when that does not converge.
+    :meth:`solve` always takes the route.
     ``record`` lists every :meth:`tangents` call: ``{"case", "warm", "newton_iterations",
-    "seconds", "converged"}`` (a fallback adds both solves)."""
+    "seconds", "converged", "result"}`` (the last solve's outcome in words,
+    ``jaxtube.RESULT_MESSAGES``; a fallback adds both solves)."""
 
     def __init__(self, campaign: Campaign, tangent_values=None, warm_starts: bool = True):
         self.campaign = campaign
         self.solver = jt.NewtonKKT(max_steps=campaign.hang.max_newton_steps)
+        self.warm_solver = dataclasses.replace(self.solver, max_steps=WARM_NEWTON_STEPS)
         self.tangent_values = None if tangent_values is None else tuple(tangent_values)
         self.warm_starts = warm_starts
         self.record: list = []
@@ -122,14 +136,16 @@ class CaseSolver:
     def _route(self, imported: jt.KiteFemImport, case: CampaignCase, start=None):
         """``(key, run, arguments)``: the case's route as a function of the parameters (and,
         for a hang, the stages, blend widths and start), its cache key and its arguments.
-        ``start`` (a :class:`jaxtube.HangStart`): instead of the route, full gravity and
-        loads at the model's blend from there, through the hang program of every route."""
+        ``start`` (a :class:`jaxtube.HangStart`): instead of the route, one solve at full
+        gravity and loads and the model's blend from there, of at most
+        ``WARM_NEWTON_STEPS`` Newton steps (one program for every route)."""
         drive_node = int(imported.node_index[case.loads[0].node]) \
             if case.route == "drive" and start is None else None
+        route = "warm" if start is not None else "drive" if drive_node is not None else "hang"
         key = (str(self.campaign.kite_fem.path), self.campaign.suspension, self.campaign.hang,
-               "drive" if drive_node is not None else "hang",
-               type(imported.params.bending_laws[0]).__name__, drive_node)
-        structure, solver, hang = imported.structure, self.solver, self.campaign.hang
+               route, type(imported.params.bending_laws[0]).__name__, drive_node)
+        structure, hang = imported.structure, self.campaign.hang
+        solver = self.warm_solver if start is not None else self.solver
         if drive_node is None:
             def run(params, load_factors, blends, start, warm):
                 cold = jt.undeformed_start(structure, params)
@@ -142,8 +158,7 @@ class CaseSolver:
                 schedule = self._schedule(case, blend)
                 start, warm = jt.undeformed_start(structure, imported.params), False
             else:
-                schedule = ((1.0,) * len(hang.load_stages), (blend,) * len(hang.load_stages))
-                warm = True
+                schedule, warm = ((1.0,), (blend,)), True
             return key, run, (imported.params, *map(jnp.asarray, schedule), start,
                               jnp.asarray(warm))
 
@@ -168,8 +183,8 @@ class CaseSolver:
         a drive only supplies the start of the last solve). Returns ``(positions [N, 3] [m],
         tangents [N, 3, k] [m per unit coordinate], converged)`` in the model file's
         numbering (held nodes do not move). One more compiled program per route and set of
-        names (per route only, with ``tangent_values``); a warm start (``warm_starts``) uses
-        the hang route's."""
+        names (per route only, with ``tangent_values``), and one for warm starts
+        (``warm_starts``, shared by every route)."""
         asked = tuple(names)
         names = asked if self.tangent_values is None else self.tangent_values
         missing = set(asked) - set(names)
@@ -203,7 +218,8 @@ class CaseSolver:
             result = run(with_model_values(campaign, params, values, plain), *schedule)
             solution, iterations = _last_solve(result, drive)
             x = solution.node_position[-1]
-            return x, (x, solution.converged[-1], iterations, jt.restart_from(solution))
+            return x, (x, solution.converged[-1], iterations, solution.result[-1],
+                       jt.restart_from(solution))
 
         # The program closes over the model's other values and the campaign's named sets:
         # they are part of its key (a program is never reused with other constants).
@@ -212,12 +228,13 @@ class CaseSolver:
         program, _ = _compiled(("tangents", names, constants) + key,
                                jax.jacfwd(positions, has_aux=True), theta, *arguments)
         started = time.perf_counter()
-        jacobian, (x, converged, iterations, reached) = jax.block_until_ready(
+        jacobian, (x, converged, iterations, result, reached) = jax.block_until_ready(
             program(theta, *arguments))
         converged = bool(converged)
         self.record.append({"case": case.name, "warm": start is not None,
                             "newton_iterations": int(iterations),
-                            "seconds": time.perf_counter() - started, "converged": converged})
+                            "seconds": time.perf_counter() - started, "converged": converged,
+                            "result": jt.RESULT_MESSAGES[int(result)]})
         if converged:
             self._last[case.name] = reached
         return jacobian, x, converged

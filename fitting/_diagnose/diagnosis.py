@@ -188,7 +188,8 @@ def diagnose(data: MeasuredData, user_effects: Sequence[type[Effect]] = (),
             for name, p in zip(parameter_names(c), c.parameters)}
     # One noise for every model: the user's, or the model-free estimate. Given to every fit,
     # so uncertainties are in the units of that noise and not inflated by a misfit.
-    noise_estimate = estimate_noise_with_error(data) if options.noise_N is None else None
+    noise_estimate = (estimate_noise_with_error(data, options.noise_order)
+                      if options.noise_N is None else None)
     if options.noise_N is None and noise_estimate is None:
         raise ValueError(f"{data.source}: too few points per curve to estimate the noise (at "
                          "least three are needed); give it (noise_N)")

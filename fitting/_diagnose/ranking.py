@@ -84,6 +84,7 @@ from collections.abc import Sequence
 
 from .._bench.effects import BUILT_IN_EFFECTS, MODEL_EXTENSIONS, Effect
 from .._bench.scaling import PivotScaling
+from .._calibrate.noise import DEFAULT_ORDER
 from .._calibrate.problem import FitOptions
 from .._calibrate.result import FitResult
 from .._json import finite_or_none
@@ -175,7 +176,9 @@ class DiagnoseOptions:
     (:mod:`fitting._diagnose.refinement`); baseline_starts: starts of the baseline's fit
     when its first fit ends with coordinates on their box bounds (the first fit included; the
     fit of lowest chi^2 is kept; :mod:`fitting._diagnose.restart`); default 1, no restart
-    (why: docs/diagnosis-study.md, "The baseline's basin"); progress: progress bars.
+    (why: docs/diagnosis-study.md, "The baseline's basin"); noise_order: the polynomial
+    degree the model-free noise estimate's differences annihilate
+    (:func:`fitting.estimate_noise_with_error`); progress: progress bars.
     """
 
     alpha: float = 0.01
@@ -187,6 +190,7 @@ class DiagnoseOptions:
     chi2_tol: float = 0.05
     refine_pivots: bool = True
     baseline_starts: int = 1
+    noise_order: int = DEFAULT_ORDER
     progress: bool = True
 
 

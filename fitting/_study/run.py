@@ -44,7 +44,8 @@ def _told_apart_statements(statements, names) -> dict[str, list[str]]:
 
 def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None,
                     segments: int | None = None,
-                    baseline_starts: int = DiagnoseOptions.baseline_starts) -> dict:
+                    baseline_starts: int = DiagnoseOptions.baseline_starts,
+                    noise_order: int = DiagnoseOptions.noise_order) -> dict:
     """Make the design's data (:func:`fitting._study.designs.make_design_data`), diagnose it
     and return its record (a JSON-ready dict): the design, its noise floor, each hidden
     effect's signal-to-noise ratio and whether the design can separate it, the verdict, its
@@ -56,7 +57,7 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
 
     ``candidates``: names to restrict the candidates to (default: all of
     :func:`fitting.default_candidates`); ``segments``: the model tube's segments;
-    ``baseline_starts``: :class:`fitting.DiagnoseOptions` ``baseline_starts``."""
+    ``baseline_starts``, ``noise_order``: those of :class:`fitting.DiagnoseOptions`."""
     scaling = PivotScaling()
     chosen = default_candidates(scaling)
     if candidates is not None:
@@ -79,7 +80,8 @@ def diagnose_design(design: StudyDesign, candidates: Sequence[str] | None = None
         diagnosis = diagnose(data, scaling=scaling,
                              rig=CantileverRig(segments=segments or DEFAULT_SEGMENTS),
                              options=DiagnoseOptions(progress=False,
-                                                     baseline_starts=baseline_starts),
+                                                     baseline_starts=baseline_starts,
+                                                     noise_order=noise_order),
                              candidates=chosen)
     except Exception as error:  # noqa: BLE001 (recorded: the study goes on)
         record.update(error=f"{type(error).__name__}: {error}",
