@@ -106,18 +106,21 @@ class DrivenEquilibrium(eqx.Module):
     Attributes:
         equilibrium: the :class:`Solution` under the dead load (a force-control solve from
             the driven state; its ``converged`` is the solver's own verdict).
-        path: the displacement-controlled steps, leaves with a leading ``[K]`` axis
-            (``control_displacement`` [m], ``control_force`` [N], each step's convergence;
-            a refused step reports ``converged`` False and leaves the drive where it was).
+        path: the displacement-controlled steps, leaves with a leading ``[K]`` axis, ``K``
+            the ``steps`` allowed (``control_displacement`` [m], ``control_force`` [N], each
+            step's convergence; a refused step reports ``converged`` False and leaves the
+            drive where it was; steps after ``steps_taken`` are zeros, not converged).
         target_force: the dead load's component along the drive direction [N].
         reached: whether a converged controlled step carried ``target_force`` (to
             ``force_tolerance``) before the equilibrium solve.
+        steps_taken: the controlled steps solved (the first ``steps_taken`` of ``path``).
     """
 
     equilibrium: Solution
     path: Solution
     target_force: Array
     reached: Array
+    steps_taken: Array
 
 
 def _node_reference(structure: Structure, params: StructureParameters, node: int) -> Array:
@@ -176,16 +179,18 @@ def drive_to_dead_load(
 
     1. The node's dead load component ``W = f . d`` is taken out of ``params`` (the rest of
        the load acts as given) and the node starts at ``initial``'s displacement ``u0``.
-    2. ``steps`` controlled solves (``lax.scan``, each warm-started from the last accepted
-       one): ``du = (W - F) / k`` with ``k`` the secant stiffness of the last two accepted
-       steps, ``|du| <= max_increment`` [m]; before two points are known, or where the secant
-       stiffness is not positive (a snap-through: ``F`` falls as ``u`` grows), a full
-       ``max_increment`` towards ``W``. A refused step (not converged) halves the increment
-       and keeps the drive where it was. Once ``|F - W| <= force_tolerance * max(|W|, 1 N)``
-       the remaining steps solve again where the drive stands (converged there: one
-       linearisation each, no Newton step). The start (1.'s state at ``u0``) is the scan's
-       first pass, so the program holds one controlled solve, not three (each traced solve
-       is a copy of the Newton iteration to compile).
+    2. At most ``steps`` controlled solves (a ``lax.while_loop`` that ends once the drive
+       carries the load): Newton's method on the scalar equation, ``du = (W - F) / k`` with
+       ``k = dF/du`` the tangent stiffness at the last accepted solve (implicit function
+       theorem: one more linear solve with its KKT matrix), ``|du| <= max_increment`` [m];
+       where ``k`` is not positive (a snap-through: ``F`` falls as ``u`` grows) or not known
+       (the start did not converge), a full ``max_increment`` towards ``W``. Each solve starts
+       from the tangent predictor ``y + du dy/du`` of the last accepted one (the predictor of
+       pseudo-arclength continuation, Allgower & Georg 2003, ch. 2). A refused step (not
+       converged) halves the increment and keeps the drive where it was. The drive stops
+       once ``|F - W| <= force_tolerance * max(|W|, 1 N)``. The start (1.'s state at ``u0``)
+       is the loop's first pass, so the program holds one controlled solve, not three (each
+       traced solve is a copy of the Newton iteration to compile).
     3. The dead-load problem (``params`` as given) is solved from the driven state: the
        equilibrium reported, with the solver's own stopping rule (Newton starts within
        ``force_tolerance`` of it).
@@ -201,7 +206,7 @@ def drive_to_dead_load(
         initial: a :class:`Solution` of the same structure without the node's load along
             ``direction`` (e.g. the gravity hang) to start from; ``None``: the undeformed
             shape.
-        steps: controlled solves (a static count: one compiled program).
+        steps: the most controlled solves (a static count: one compiled program).
         max_increment: largest drive increment [m] per step.
         force_tolerance: relative force mismatch at which the drive stops.
 
@@ -224,45 +229,59 @@ def drive_to_dead_load(
         state0, lam0 = initial.state, initial.multipliers
         u0 = jnp.dot(initial.node_position[node] - reference, direction)
     state0, lam0, u0 = jax.lax.stop_gradient((state0, lam0, u0))
-    tolerance = force_tolerance * jnp.maximum(jnp.abs(target), 1.0)
 
     # The drive only supplies the start of the equilibrium solve: no gradient through it.
     path_params, path_geometry = jax.lax.stop_gradient((driven_params, geometry))
 
     def controlled(state, lam, u):
-        return solve_load_level(structure, path_params, path_geometry, (node, direction, u),
-                                state, lam, solver, 1.0)
+        """The controlled solve from ``(state, lam)`` at ``u`` and its tangent along ``u``
+        (implicit function theorem: one more linear solve)."""
+        return jax.jvp(lambda v: solve_load_level(structure, path_params, path_geometry,
+                                                  (node, direction, v), state, lam, solver,
+                                                  1.0), (u,), (jnp.ones_like(u),))
 
     # One controlled solve in the program (each traced solve is a copy of the Newton
-    # iteration to compile): the scan's first pass is the start itself (at its own
-    # displacement: no Newton step), and a finished drive solves again where it stands
-    # (converged there: no Newton step) rather than branching to a second solve.
-    def step(carry, _):
-        state, lam, u, force, stiffness, increment, done, started = carry
-        secant = stiffness > 0.0
-        du = jnp.where(secant, (target - force) / jnp.where(secant, stiffness, 1.0),
-                       jnp.sign(target - force) * increment)
-        du = jnp.where(started & ~done, jnp.clip(du, -increment, increment), 0.0)
-        trial = controlled(state, lam, u + du)
-        accepted = trial.converged & ~done
-        new_force = trial.control_force
-        new_stiffness = (new_force - force) / jnp.where(du == 0.0, 1.0, du)
-        # (the start is taken as it is, converged or not: the drive goes on from it)
-        pick = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
-            lambda a, b: jnp.where(accepted | ~started, a, b), new, old)
-        state, lam = pick((trial.state, trial.multipliers), (state, lam))
-        u, force = pick((u + du, new_force), (u, force))
-        stiffness = jnp.where(accepted & started, new_stiffness, stiffness)
-        increment = jnp.where(done | accepted | ~started, increment, 0.5 * increment)
-        done = done | (accepted & (jnp.abs(new_force - target) <= tolerance))
-        return (state, lam, u, force, stiffness, increment, done, jnp.ones((), bool)), trial
+    # iteration to compile): the loop's first pass is the start itself (at its own
+    # displacement: no Newton step); the loop ends once the drive carries the load.
+    target_force = jax.lax.stop_gradient(target)  # (the loop is not differentiated)
+    tolerance = force_tolerance * jnp.maximum(jnp.abs(target_force), 1.0)
+    lam_start = jnp.concatenate([lam0, jnp.zeros((1,))])
+    shapes = jax.eval_shape(lambda: controlled(state0, lam_start, u0)[0])
+    empty = jax.tree_util.tree_map(lambda x: jnp.zeros((steps + 1,) + x.shape, x.dtype),
+                                   shapes)
 
-    start = (state0, jnp.concatenate([lam0, jnp.zeros((1,))]), u0, jnp.zeros(()),
-             jnp.zeros(()), jnp.asarray(max_increment, dtype=float), jnp.zeros((), bool),
-             jnp.zeros((), bool))
-    (state, lam, _, _, _, _, reached, _), path = jax.lax.scan(step, start, None,
-                                                                length=steps + 1)
+    def step(carry):
+        (k, state, lam, rate, u, force, stiffness, increment, done, path) = carry
+        started = k > 0
+        toward = jnp.where(stiffness > 0.0,
+                           (target_force - force) / jnp.where(stiffness > 0.0, stiffness, 1.0),
+                           jnp.sign(target_force - force) * increment)
+        du = jnp.where(started, jnp.clip(toward, -increment, increment), 0.0)
+        start = jax.tree_util.tree_map(lambda x, dx: x + du * dx, (state, lam), rate)
+        trial, trial_rate = controlled(*start, u + du)
+        accepted = trial.converged | ~started  # (the start is taken as it is)
+        pick = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
+            lambda a, b: jnp.where(accepted, a, b), new, old)
+        tangent_known = trial.converged
+        new_rate = jax.tree_util.tree_map(lambda d: jnp.where(tangent_known, d, 0.0),
+                                          (trial_rate.state, trial_rate.multipliers))
+        state, lam, rate = pick((trial.state, trial.multipliers, new_rate), (state, lam, rate))
+        u, force = pick((u + du, trial.control_force), (u, force))
+        stiffness = jnp.where(accepted, jnp.where(tangent_known,
+                                                  trial_rate.control_force, 0.0), stiffness)
+        increment = jnp.where(accepted, increment, 0.5 * increment)
+        done = trial.converged & started & (
+            jnp.abs(trial.control_force - target_force) <= tolerance)
+        path = jax.tree_util.tree_map(lambda buffer, x: buffer.at[k].set(x), path, trial)
+        return (k + 1, state, lam, rate, u, force, stiffness, increment, done, path)
+
+    zero = jnp.zeros(())
+    rate0 = jax.tree_util.tree_map(jnp.zeros_like, (state0, lam_start))
+    start = (jnp.zeros((), int), state0, lam_start, rate0, u0, zero, zero,
+             jnp.asarray(max_increment, dtype=float), jnp.zeros((), bool), empty)
+    (taken, state, lam, _, _, _, _, _, reached, path) = jax.lax.while_loop(
+        lambda carry: (carry[0] <= steps) & ~carry[8], step, start)
     path = jax.tree_util.tree_map(lambda x: x[1:], path)
     equilibrium = solve_load_level(structure, params, geometry, None, state, lam[:-1], solver,
                                    1.0)
-    return DrivenEquilibrium(equilibrium, path, target, reached)
+    return DrivenEquilibrium(equilibrium, path, target, reached, taken - 1)

@@ -36,10 +36,15 @@ def test_point_node_driven_across_a_slack_taut_change_matches_the_closed_form():
     tension = np.asarray(driven.equilibrium.line_tension)
     assert tension[0] == 0.0  # the upper line is slack: exactly nothing
     np.testing.assert_allclose(tension[1], force, rtol=1e-10)
-    # The path: every accepted step converged, and it crossed the slack-taut change.
+    # The path: every accepted step converged, and it crossed the slack-taut change; the
+    # drive stopped once it carried the load, the steps after it not solved.
+    taken = int(driven.steps_taken)
+    assert 0 < taken < 12
     accepted = np.asarray(driven.path.converged)
+    assert not accepted[taken:].any()
     path_force = np.asarray(driven.path.control_force)[accepted]
     assert path_force.min() < 2 * K * (1 - L0) < path_force.max()
+    assert abs(path_force[-1] - force) <= 1e-6 * force
 
 
 @pytest.fixture(scope="module")

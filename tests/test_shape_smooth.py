@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 import fitting
 from fitting import continuous_radius, smooth_shape_score
+from fitting._campaign.solve import _PROGRAMS
 from fitting._cli.shape import add_shape
 
 from .kite_fem_mini import write_mini_kite
@@ -158,6 +159,19 @@ def test_tangents_in_a_point_mass_and_offsets(kite):
         scale = np.abs(tangents[..., k]).max()
         assert scale > 0
         np.testing.assert_allclose(tangents[..., k], central, atol=2e-4 * scale)
+
+
+def test_a_model_set_in_another_order_shares_the_compiled_program(kite):
+    """The same values set in the reverse order (dictionaries in another order) solve with
+    the program already compiled, to the same positions."""
+    _, solve, _ = kite
+    names = NAMES + OFFSETS
+    values = np.array(PLANTED + (0.3, 0.01, 2.0, -1.0))
+    positions, _ = solve(values, names)
+    programs = len(_PROGRAMS)
+    again, _ = solve(values[::-1], names[::-1])
+    assert len(_PROGRAMS) == programs
+    np.testing.assert_allclose(again, positions, atol=1e-9)
 
 
 def test_smooth_optimum_is_the_peers_score_within_a_millimetre(kite):

@@ -105,6 +105,8 @@ class CampaignCalibration:
             their Jacobian in the values' search coordinates and each case's registration
             (module docstring; :func:`fitting.diagnose_campaign` scores left-out cases from
             it).
+        registrations: ``{case: fitting.Registration}`` of each case at the end (a later
+            fit of the same cases starts from them: ``calibrate_campaign(registrations=)``).
     """
 
     model: KiteModel
@@ -122,6 +124,7 @@ class CampaignCalibration:
     residual_count: int
     degrees_of_freedom: int
     least_squares: tuple = dataclasses.field(default=(), repr=False, compare=False)
+    registrations: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
 
     def to_json(self) -> dict:
         """The model file's content (``model``) with the estimates and what was said."""
@@ -150,11 +153,15 @@ def on_bound(name: str, value: float, bounds: tuple) -> bool:
 
 def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
                        solver: CaseSolver, bounds=None, max_steps: int = 20,
-                       log=print, threads: int | None = None) -> CampaignCalibration:
+                       log=print, threads: int | None = None,
+                       registrations=None) -> CampaignCalibration:
     """Fit ``model``'s values ``names`` to ``cases`` (names, each with markers), starting
     from ``model`` (module docstring). ``bounds``: ``{name: (low, high)}`` (default
     :func:`value_bounds`); ``threads``: cases solved at once in an evaluation (default one
-    per core, at most one per case: each solve is a compiled program on one core)."""
+    per core, at most one per case: each solve is a compiled program on one core);
+    ``registrations``: ``{case: fitting.Registration}`` each case's first registration is
+    iterated from (a previous fit's ``registrations``, near this start; default: the full
+    search of :func:`fitting.register`)."""
     threads = threads or max(1, min(len(cases), os.cpu_count() or 1))
     names = tuple(names)
     bounds = {n: (bounds or {}).get(n, value_bounds(n)) for n in names}
@@ -162,7 +169,8 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     high = search_coordinates(names, [bounds[n][1] for n in names])
     markers = {c: load_markers(campaign.case(c).markers) for c in cases}
     evaluations = []
-    registrations = {}  # each case's last registration: the next one starts from it
+    # each case's last registration: the next one starts from it
+    registrations = dict(registrations or {})
 
     seconds = {}  # each case's last solve and score: the longest start first
 
@@ -266,7 +274,9 @@ def calibrate_campaign(campaign: Campaign, model: KiteModel, names, cases,
     return CampaignCalibration(with_values(model, names, values), names, values,
                                errors, correlation, tuple(statements),
                                evaluations[0][2], per_case, converged, message,
-                               len(evaluations), *residuals, (jacobian, residual, rows))
+                               len(evaluations), *residuals, (jacobian, residual, rows),
+                               {case: state[2].registration.registration
+                                for case, state in states.items()})
 
 
 @eqx.filter_jit

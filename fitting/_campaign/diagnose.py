@@ -16,8 +16,9 @@ in the same linearisation (:func:`linearised_held_out`): no solve beyond the fit
 case. ``held_out="refit"`` fits the values to the other cases and solves the left-out case
 (a fit per case and candidate). Every fit starts from the current model's
 values (the last optimum), the candidate's at its null (1 for a factor, 0 for a mass or an
-offset, clipped into its plausible range), and every solve from the case's last
-equilibrium (:class:`fitting.CaseSolver` ``warm_starts``).
+offset, clipped into its plausible range), every solve from the case's last
+equilibrium (:class:`fitting.CaseSolver` ``warm_starts``) and every case's registration from
+the current fit's.
 
 **Statistics** (as the curve diagnosis, :mod:`fitting._diagnose.ranking`, where they apply):
 each candidate is also fitted to every case; with ``RSS`` the tube markers' smooth distances'
@@ -154,10 +155,11 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
     markers = {c: load_markers(campaign.case(c).markers) for c in cases}
     quiet = lambda text: None  # noqa: E731
 
-    def fit(start, names, on, bounds):
+    def fit(start, names, on, bounds, registrations=None):
         started = time.perf_counter()
         found = calibrate_campaign(campaign, start, names, on, solver, bounds=bounds,
-                                   max_steps=FIT_STEPS, log=quiet)
+                                   max_steps=FIT_STEPS, log=quiet,
+                                   registrations=registrations)
         log(f"  fit of {', '.join(names)} to {len(on)} cases: {found.evaluations} "
             f"evaluations, {time.perf_counter() - started:.1f} s, mean square RMS "
             f"{np.mean(np.square(list(found.rms_mm_after.values()))):.1f} mm^2")
@@ -168,7 +170,8 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
     def refit_held_out(start, names, bounds):
         rms = {}
         for case in cases:
-            found = fit(start, names, [c for c in cases if c != case], bounds)
+            found = fit(start.model, names, [c for c in cases if c != case], bounds,
+                        start.registrations)
             positions, _, converged = solver.tangents(campaign.case(case), found.model,
                                                       names)
             if not converged:
@@ -179,9 +182,11 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
         return rms
 
     def scored(fitted, start, names, bounds):
-        """``(held-out RMS {case: mm}, the fit to every case)``: ``fitted`` (or a new fit
-        from ``start`` when ``None``) and its cases scored when left out."""
-        full = fit(start, names, cases, bounds) if fitted is None else fitted
+        """``(held-out RMS {case: mm}, the fit to every case)``: ``fitted`` (or, when
+        ``None``, a new fit from the fit ``start``'s model and registrations) and its cases
+        scored when left out."""
+        full = fit(start.model, names, cases, bounds, start.registrations) \
+            if fitted is None else fitted
         if held_out == "refit":
             return refit_held_out(start, names, bounds), full
         return linearised_held_out(full, {n: bounds.get(n, value_bounds(n))
@@ -193,7 +198,7 @@ def diagnose_campaign(campaign: Campaign, model: KiteModel, baseline, candidates
     baseline_fit, added, steps, unseparated = current, [], [], []
     remaining = [e for e in candidates if not set(e.values) & set(names)]
     while remaining:
-        current_held, _ = scored(current, current.model, names, bounds)
+        current_held, _ = scored(current, current, names, bounds)
         current_square = float(np.mean(np.square(list(current_held.values()))))
         log(f"current model ({', '.join(names)}): held-out RMS "
             + ", ".join(f"{c} {r:.1f}" for c, r in current_held.items()) + " mm")
@@ -239,7 +244,7 @@ def _rank(effect, current, current_square, names, bounds, scored, in_play):
     trial_names = names + effect.values
     trial_bounds = {**bounds, **effect.bounds}
     try:
-        rms, full = scored(None, current.model, trial_names, trial_bounds)
+        rms, full = scored(None, current, trial_names, trial_bounds)
     except RuntimeError as error:
         return ShapeCandidateRanking(effect, {}, math.nan, math.nan, math.nan, math.nan, None,
                                 (f"a fit failed: {error}",))

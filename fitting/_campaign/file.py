@@ -88,7 +88,7 @@ class HangSchedule:
             route ``"gravity"`` takes the full load in the first and no step after).
         first_stage_tension_smoothing: the lines' slack-taut blend (strain) of the first
             stage of route ``"stages"`` (``None``: the model's own width throughout).
-        drive_steps, drive_increment_m: the displacement-controlled solves of route
+        drive_steps, drive_increment_m: the most displacement-controlled solves of route
             ``"drive"`` and their largest step [m].
     """
 

@@ -20,6 +20,7 @@ process (:class:`CaseSolver`), ahead of the first timed solve, so every ``second
 from __future__ import annotations
 
 import dataclasses
+import json
 import threading
 import time
 
@@ -222,9 +223,12 @@ class CaseSolver:
                        jt.restart_from(solution))
 
         # The program closes over the model's other values and the campaign's named sets:
-        # they are part of its key (a program is never reused with other constants).
-        constants = repr((with_values(model, names, [0.0] * len(names)), campaign.line_sets,
-                          campaign.tube_classes, campaign.points, campaign.gravity.tolist()))
+        # they are part of its key (a program is never reused with other constants), written
+        # in sorted order (models that differ only in the order their values were set share
+        # a program; the V3 diagnosis compiled its programs again for each such model).
+        others = with_values(model, names, [0.0] * len(names)).to_json()
+        constants = json.dumps([others, campaign.line_sets, campaign.tube_classes,
+                                campaign.points, campaign.gravity.tolist()], sort_keys=True)
         program, _ = _compiled(("tangents", names, constants) + key,
                                jax.jacfwd(positions, has_aux=True), theta, *arguments)
         started = time.perf_counter()
@@ -256,18 +260,20 @@ class CaseSolver:
         else:
             stages, driven = result
             solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
-            accepted = np.asarray(driven.path.converged)
+            taken = int(driven.steps_taken)
+            accepted = np.asarray(driven.path.converged)[:taken]
             drive = {"reached": bool(driven.reached),
                      "target_force_N": float(driven.target_force),
                      "control_displacement_m": np.asarray(
-                         driven.path.control_displacement)[accepted].tolist(),
-                     "control_force_N": np.asarray(driven.path.control_force)[accepted].tolist(),
-                     "newton_iterations": np.asarray(driven.path.iterations).tolist(),
+                         driven.path.control_displacement)[:taken][accepted].tolist(),
+                     "control_force_N": np.asarray(
+                         driven.path.control_force)[:taken][accepted].tolist(),
+                     "newton_iterations": np.asarray(driven.path.iterations)[:taken].tolist(),
                      "step_converged": accepted.tolist()}
             hang = self.campaign.hang
             words = (f"gravity (the mass taken off), then the mass at node "
                      f"{case.loads[0].node} by displacement control "
-                     f"(jaxtube.drive_to_dead_load, {hang.drive_steps} steps of at most "
+                     f"(jaxtube.drive_to_dead_load, at most {hang.drive_steps} steps of at most "
                      f"{hang.drive_increment_m} m), then the dead-load solve")
         iterations = np.asarray(stages.iterations).tolist()
         stage_converged = np.asarray(stages.converged).tolist()
