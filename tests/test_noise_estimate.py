@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 
 import fitting as ft
+from fitting._calibrate.noise import DEFAULT_ORDER
+from fitting._diagnose import diagnosis
 
 DATA = Path(__file__).parent / "data"
 FLOORS = {**json.loads((DATA / "noise_floors.json").read_text()),
@@ -59,3 +61,26 @@ def test_noise_estimate_is_unbiased_on_a_bending_curve_and_its_error_is_right():
     assert np.mean(estimates) == pytest.approx(sigma, rel=0.05)
     assert np.mean(linear) > 1.3 * sigma  # the locally linear assumption fails here
     assert np.std(estimates) == pytest.approx(np.mean(errors), rel=0.25)
+
+
+class _Stop(Exception):
+    """Raised by the stand-in estimate: the diagnosis stops before its first fit."""
+
+
+@pytest.mark.parametrize("order", [None, 3])
+def test_the_diagnosis_estimates_the_noise_at_the_order_asked(monkeypatch, order):
+    """``DiagnoseOptions.noise_order`` (default :data:`DEFAULT_ORDER`) is the order the
+    diagnosis' noise estimate is made at."""
+    asked = []
+
+    def estimate(data, noise_order):
+        asked.append(noise_order)
+        raise _Stop
+
+    monkeypatch.setattr(diagnosis, "estimate_noise_with_error", estimate)
+    path = sorted(FLOORS)[0]
+    options = ft.DiagnoseOptions(progress=False) if order is None else \
+        ft.DiagnoseOptions(progress=False, noise_order=order)
+    with pytest.raises(_Stop):
+        ft.diagnose(ft.load_measurements(DATA.parent.parent / path), options=options)
+    assert asked == [DEFAULT_ORDER if order is None else order]
