@@ -225,7 +225,7 @@ class CaseSolver:
         # The program closes over the model's other values and the campaign's named sets:
         # they are part of its key (a program is never reused with other constants), written
         # in sorted order (models that differ only in the order their values were set share
-        # a program; the V3 diagnosis compiled its programs again for each such model).
+        # a program).
         others = with_values(model, names, [0.0] * len(names)).to_json()
         constants = json.dumps([others, campaign.line_sets, campaign.tube_classes,
                                 campaign.points, campaign.gravity.tolist()], sort_keys=True)
