@@ -19,7 +19,7 @@ Geometry (closed forms, no iteration):
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import equinox as eqx
 import jax
@@ -83,22 +83,6 @@ class TubeSurfaces(eqx.Module):
                    jnp.asarray(radii[:, 0]), jnp.asarray(radii[:, 1]), jnp.asarray(triangles),
                    names)
 
-    @classmethod
-    def from_chains(cls, node_positions, chains: Mapping[str, tuple[Sequence[int], object]],
-                    canopy_triangles=None) -> TubeSurfaces:
-        """Surfaces from node chains: ``{group: (nodes [k+1], radii)}`` with ``radii`` a
-        number, ``[k]`` per-segment radii, or ``[k, 2]`` (start, end) per segment [m]."""
-        rows = []
-        for name, (nodes, radii) in chains.items():
-            nodes = [int(n) for n in nodes]
-            radii = np.asarray(radii, float)
-            if radii.ndim == 1:
-                radii = radii[:, None]
-            per_segment = np.broadcast_to(radii, (len(nodes) - 1, 2))
-            rows += [(name, a, b, r0, r1) for a, b, (r0, r1)
-                     in zip(nodes[:-1], nodes[1:], per_segment)]
-        return cls.from_segments(node_positions, rows, canopy_triangles)
-
     def with_positions(self, node_positions) -> TubeSurfaces:
         """The same tubes with other node positions ``[n, 3]`` [m] (a deformed state)."""
         node_positions = jnp.asarray(node_positions)
@@ -110,10 +94,6 @@ class TubeSurfaces(eqx.Module):
     @property
     def has_canopy(self) -> bool:
         return self.canopy_triangles.shape[0] > 0
-
-    def axis_points(self) -> np.ndarray:
-        """``[2 s, 3]`` the segments' end points [m] (numpy), for starts and figures."""
-        return np.asarray(self.node_positions)[np.asarray(self.segment_nodes).reshape(-1)]
 
 
 def tube_surface_distance(surfaces: TubeSurfaces, points: Array,
