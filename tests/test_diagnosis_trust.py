@@ -156,6 +156,14 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
              summary["final_rmse_over_floor"]["within"], summary["noise_estimate_error"]["within"]]
     rates += [row[key] for row in summary["power"] for key in ("found", "found_clean")]
     assert all(_rate_or_none(rate) for rate in rates), rates
+    for row, key in ((summary["false_alarm"], "rate"), (summary["final_rmse_over_floor"], "within"),
+                     (summary["noise_estimate_error"], "within"),
+                     (summary["power_resolvable"], "found_clean")):
+        if row[key] is None:
+            assert row["interval_95"] is None
+        else:
+            low, high = row["interval_95"]
+            assert 0.0 <= low <= row[key] <= high <= 1.0 and high - low > 0.5  # two designs
     assert summary["seconds"]["median"] > 0 and summary["seconds"]["median_6_curves_warm"] is None
     report = ft.study_report(summary)
     assert "false alarms on null designs: " in report and "n/a" in report
@@ -163,6 +171,25 @@ def test_study_on_a_local_cluster_of_two_workers_accounts_for_every_design(tmp_p
     strict_json(tmp_path.parent / "summary.json")
     ft.study_figure(records).savefig(tmp_path.parent / "study.png")
     assert (tmp_path.parent / "study.png").stat().st_size > 10_000
+
+
+def test_study_rates_carry_their_exact_binomial_interval():
+    """Clopper-Pearson against closed forms: with no hit the upper end solves
+    ``(1 - p)^n = 0.025``, with every trial a hit the lower end ``p^n = 0.025``; one false
+    alarm in 24 nulls reaches 21 % (the study page's figure), and the interval is centred
+    on one half for half the trials."""
+    from fitting._study.summary import rate_interval
+
+    for n in (1, 10, 24, 300):
+        assert rate_interval(0, n)[0] == 0.0
+        assert rate_interval(0, n)[1] == pytest.approx(1.0 - 0.025 ** (1.0 / n), rel=1e-9)
+        assert rate_interval(n, n)[0] == pytest.approx(0.025 ** (1.0 / n), rel=1e-9)
+        assert rate_interval(n, n)[1] == 1.0
+    low, high = rate_interval(1, 24)
+    assert 0.001 < low < 0.0011 and high == pytest.approx(0.2112, abs=1e-4)
+    low, high = rate_interval(50, 100)
+    assert low == pytest.approx(1.0 - high, rel=1e-12) and 0.39 < low < 0.41
+    assert rate_interval(0, 0) is None
 
 
 def test_noise_only_records_match_the_estimate_the_diagnosis_uses():

@@ -3,7 +3,9 @@ the confusion table, the false-alarm rate on null designs, power against the eff
 signal-to-noise ratio, the "cannot be told apart" statements against what the design can
 separate, the final RMSE and the noise estimate against the noise floor, and time; with
 the issue's targets (issue 34) beside them. A rate with nothing to count is None (``null``
-in JSON), never 0.
+in JSON), never 0. Each rate held against a target carries its exact (Clopper-Pearson) 95 %
+interval: a few dozen designs leave rates uncertain by tens of percent, and whether a target
+is met is a statement about the interval, not the point.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import math
 from collections import Counter
 
 import numpy as np
+from scipy.stats import beta
 
 #: Signal-to-noise bins of the power table: the effect's largest change of the curves in
 #: noise-floor units.
@@ -26,6 +29,18 @@ SECONDS_TARGET, TARGET_CURVES = 60.0, 6
 
 def _rate(hits: int, total: int) -> float | None:
     return hits / total if total else None
+
+
+def rate_interval(hits: int, total: int, level: float = 0.95) -> list[float] | None:
+    """The exact (Clopper & Pearson 1934) interval ``[low, high]`` of a binomial rate from
+    ``hits`` of ``total`` at confidence ``level``: the beta quantiles that bound it; None for
+    no trials."""
+    if not total:
+        return None
+    tail = (1.0 - level) / 2.0
+    low = 0.0 if hits == 0 else float(beta.ppf(tail, hits, total - hits + 1))
+    high = 1.0 if hits == total else float(beta.ppf(1.0 - tail, hits + 1, total - hits))
+    return [low, high]
 
 
 def effect_outcomes(records) -> list[dict]:
@@ -66,6 +81,7 @@ def study_summary(records) -> dict:
                           "found_clean": _rate(sum(o["found"] and o["clean"] for o in rows),
                                                len(rows))})
     resolvable = [o for o in outcomes if o["snr"] > POWER_SNR and o["separable"]]
+    resolvable_found = sum(o["found"] and o["clean"] for o in resolvable)
     told = {}
     for separable in (True, False):
         rows = [o for o in outcomes if o["separable"] == separable]
@@ -75,6 +91,8 @@ def study_summary(records) -> dict:
             "neither": sum(not o["found"] and not o["said_cannot_tell"] for o in rows)}
     rmse_ratio = np.array([r["final_rmse_N"] / r["noise_floor_N"] for r in done])
     noise_error = np.array([r["noise_N"] / r["noise_floor_N"] - 1.0 for r in done])
+    rmse_within = int(np.sum(rmse_ratio <= RMSE_RATIO))
+    noise_within = int(np.sum(np.abs(noise_error) <= NOISE_ERROR))
     seconds = np.array([r["seconds"] for r in done])
     target_seconds = np.array([r["seconds"] for r in done
                                if r["curves"] == TARGET_CURVES and r.get("warm")])
@@ -96,19 +114,23 @@ def study_summary(records) -> dict:
         "confusion": {"hidden": hidden_labels, "found": found_labels,
                       "counts": [[confusion[h, f] for f in found_labels] for h in hidden_labels]},
         "false_alarm": {"nulls": len(nulls), "false_alarms": false_alarms,
-                        "rate": _rate(false_alarms, len(nulls)), "target": FALSE_ALARM_TARGET},
+                        "rate": _rate(false_alarms, len(nulls)),
+                        "interval_95": rate_interval(false_alarms, len(nulls)),
+                        "target": FALSE_ALARM_TARGET},
         "power": power,
         "power_resolvable": {
             "effects": len(resolvable),
-            "found_clean": _rate(sum(o["found"] and o["clean"] for o in resolvable),
-                                 len(resolvable)),
+            "found_clean": _rate(resolvable_found, len(resolvable)),
+            "interval_95": rate_interval(resolvable_found, len(resolvable)),
             "snr_above": POWER_SNR, "target": POWER_TARGET},
         "cannot_tell": told,
         "final_rmse_over_floor": {
-            "within": _rate(int(np.sum(rmse_ratio <= RMSE_RATIO)), rmse_ratio.size),
+            "within": _rate(rmse_within, rmse_ratio.size),
+            "interval_95": rate_interval(rmse_within, rmse_ratio.size),
             "ratio": RMSE_RATIO, "target": RMSE_TARGET, **quantiles(rmse_ratio)},
         "noise_estimate_error": {
-            "within": _rate(int(np.sum(np.abs(noise_error) <= NOISE_ERROR)), noise_error.size),
+            "within": _rate(noise_within, noise_error.size),
+            "interval_95": rate_interval(noise_within, noise_error.size),
             "error": NOISE_ERROR, "target": NOISE_TARGET, **quantiles(noise_error)},
         "seconds": {"median": float(np.median(seconds)) if seconds.size else None,
                     "median_6_curves_warm": (float(np.median(target_seconds))
@@ -120,6 +142,14 @@ def study_summary(records) -> dict:
 
 def _percent(value) -> str:
     return "n/a" if value is None else f"{value:.0%}"
+
+
+def _interval(row: dict) -> str:
+    """`` (95 % interval a-b %)`` of a row's ``interval_95``, or nothing without one."""
+    interval = row.get("interval_95")
+    if interval is None:
+        return ""
+    return f" (95 % interval {interval[0]:.0%}-{interval[1]:.0%})"
 
 
 def study_report(summary: dict) -> str:
@@ -144,7 +174,7 @@ def study_report(summary: dict) -> str:
         lines.append(f"  {label:<34}" + "".join(f"{c:>{width}}" for c in counts))
     fa = s["false_alarm"]
     lines += ["", f"false alarms on null designs: {fa['false_alarms']} of {fa['nulls']} = "
-                  f"{_percent(fa['rate'])} (target <= {fa['target']:.0%})", "",
+                  f"{_percent(fa['rate'])}{_interval(fa)} (target <= {fa['target']:.0%})", "",
               "power: share of hidden effects named, by signal-to-noise (largest change of the "
               "curves in noise-floor units)",
               f"  {'SNR':<12}{'separable':>10}{'effects':>9}{'found':>8}{'found, no other':>17}"]
@@ -156,7 +186,7 @@ def study_report(summary: dict) -> str:
                          f"{_percent(row['found_clean']):>17}")
     pr = s["power_resolvable"]
     lines.append(f"  SNR > {pr['snr_above']:g} and separable: found with no other physical effect "
-                 f"in {_percent(pr['found_clean'])} of {pr['effects']} (target >= "
+                 f"in {_percent(pr['found_clean'])} of {pr['effects']}{_interval(pr)} (target >= "
                  f"{pr['target']:.0%})")
     lines += ["", "'cannot be told apart' against what the design can separate (hidden effects)"]
     for key, row in s["cannot_tell"].items():
@@ -170,7 +200,7 @@ def study_report(summary: dict) -> str:
         bound = (f"<= {row['ratio']:g}" if share == "ratio" else f"within {row['error']:.0%}")
         quantile_words = ", ".join(f"{k} {row[k]:+.2f}" if share == "error" else
                                    f"{k} {row[k]:.2f}" for k in row if k.startswith("q"))
-        lines += ["", f"{words}: {bound} in {_percent(row['within'])} (target >= "
+        lines += ["", f"{words}: {bound} in {_percent(row['within'])}{_interval(row)} (target >= "
                       f"{row['target']:.0%}); quantiles {quantile_words or 'n/a'}"]
     t = s["seconds"]
     median6 = ("n/a" if t["median_6_curves_warm"] is None
