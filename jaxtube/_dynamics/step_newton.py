@@ -44,13 +44,13 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
+from .._solver.kkt_route import kkt_route
 from .._solver.kkt_step import all_finite, regularised_step
 from .._solver.newton_kkt import (
     MU_FLOOR,
     EquilibriumResult,
     NewtonKKT,
     _kkt_at_solution,
-    _kkt_route,
     _lagrangian_hessian,
     implicit_tangent,
 )
@@ -80,7 +80,7 @@ def _step_newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     n, m = z0.shape[0], lam0.shape[0]
     k = jax.eval_shape(objective, z0, args)[0].shape[0]
     dtype = z0.dtype
-    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    route = kkt_route(hessian_fn, solver.linear_solver, args, z0, lam0)
 
     def evaluate(z, lam):
         """``(energy, c, grad_e, jacobian, residuals [2], converged, finite)`` at ``(z,
@@ -152,7 +152,7 @@ def _step_solution(objective, hessian_fn, solver, args, z0, lam0):
 def _step_solution_jvp(objective, hessian_fn, solver, primals, tangents):
     args, z0, lam0 = primals
     z, lam, stats = _step_solution(objective, hessian_fn, solver, args, z0, lam0)
-    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    route = kkt_route(hessian_fn, solver.linear_solver, args, z0, lam0)
     kkt = _kkt_at_solution(objective, hessian_fn, route, args, z, lam)
     return (z, lam, stats), implicit_tangent(objective, route, args, tangents[0], z, lam, kkt,
                                              stats)

@@ -42,7 +42,8 @@ from .._solver.kkt_augmented import ConstraintFactors
 
 # The step's own KKT system, solved once (a quadratic problem needs no Newton loop): the
 # route and matrix of the solver's implicit tangent.
-from .._solver.newton_kkt import NewtonKKT, _kkt_at_solution, _kkt_route
+from .._solver.kkt_route import kkt_route
+from .._solver.newton_kkt import NewtonKKT, _kkt_at_solution
 from .._structure.structure import GROUND, Structure
 
 #: The extended state's key of the segment centroids ``[S, 3]`` [m].
@@ -273,7 +274,7 @@ def constrained_rates(structure: Structure, params, geometry, state: dict, mass,
         if structure.segment_count else None)
     m = jax.eval_shape(objective, zero, args)[1].shape[0]
     multipliers = jnp.zeros((m,))
-    route = _kkt_route(hessian, solver, args, zero, multipliers)
+    route = kkt_route(hessian, solver.linear_solver, args, zero, multipliers)
     kkt = _kkt_at_solution(objective, hessian, route, args, zero, multipliers)
     gradient = jax.grad(lambda flat: jnp.sum(objective(flat, args)[0]))(zero)
     rates = unravel(route.solve(kkt, jnp.concatenate([-gradient, multipliers]))[:zero.size])

@@ -1,6 +1,7 @@
 """One regularised Newton-KKT step and its second-order correction, for the iteration of
 :mod:`jaxtube._solver.newton_kkt`; the proposed step it carries to the next pass
-(:class:`PendingStep`) and the skippable section it runs in (:func:`unless`).
+(:class:`PendingStep`), the recent merits its nonmonotone Armijo tests compare with
+(:class:`RecentMerits`) and the skippable section it runs in (:func:`unless`).
 
 **The regularised step.** With Hessian ``H``, constraint Jacobian ``J``, energy gradient
 ``g`` and constraints ``c``, the step ``dz`` and the new multipliers solve::
@@ -140,3 +141,35 @@ class PendingStep(eqx.Module):
     jacobian_step: Array
     factors: object
     finite: Array
+
+
+class RecentMerits(eqx.Module):
+    """The energy and constraint violation of the last few iterates, for the nonmonotone
+    Armijo tests (Grippo, Lampariello & Lucidi 1986; :mod:`jaxtube._solver.newton_kkt`).
+
+    Attributes:
+        energy: ``[w]`` energies ``E`` (``-inf`` where no iterate is recorded yet).
+        violation: ``[w]`` violations ``|c|_1``. Oldest first.
+    """
+
+    energy: Array
+    violation: Array
+
+    @classmethod
+    def empty(cls, window: int, dtype) -> RecentMerits:
+        """No iterate recorded, room for ``window`` (at least 1)."""
+        if window < 1:
+            raise ValueError(f"NewtonKKT.nonmonotone_window must be at least 1, got {window}")
+        return cls(jnp.full((window,), -jnp.inf, dtype), jnp.zeros((window,), dtype))
+
+    def record(self, energy, violation, where) -> RecentMerits:
+        """These merits with an iterate's ``energy`` and ``violation`` added (the oldest
+        dropped) where ``where``; unchanged otherwise."""
+        pushed = RecentMerits(jnp.append(self.energy[1:], energy),
+                              jnp.append(self.violation[1:], violation))
+        return jax.tree.map(lambda new, old: jnp.where(where, new, old), pushed, self)
+
+    def reference(self, merit, rho):
+        """The merit a trial is compared with: the largest of ``merit`` (the current
+        iterate's) and the recorded iterates' ``E + rho |c|_1`` at the penalty ``rho``."""
+        return jnp.maximum(merit, jnp.max(self.energy + rho * self.violation))

@@ -14,10 +14,9 @@ Hessian (forward-over-reverse automatic differentiation):
 Stopping rule: converged when ``|grad E + J^T lambda|_inf <= rtol * scale + atol`` and
 ``|c|_inf <= constraint_tol``, with ``scale = max(max_k |grad E_k|_inf, |J^T lambda|_inf)``:
 the largest generalised force of any term making up the residual. It does not involve the
-tangent stiffness (an earlier rule used ``|H z|``, which exploded where a law's computed
-second derivative did and accepted a far-from-converged state), and a self-equilibrated
-problem with zero reactions (a ring pushed at two opposite points) still has its internal
-and load terms.
+tangent stiffness (which explodes where a law's computed second derivative does), and a
+self-equilibrated problem with zero reactions (a ring pushed at two opposite points) still
+has its internal and load terms.
 
 The linear systems are solved dense (LAPACK) or sparse (KLU on a static pattern built from
 the model's Hessian blocks), chosen by ``NewtonKKT.linear_solver``: ``jaxtube._solver.kkt_linear``.
@@ -31,7 +30,11 @@ Globalisation:
 - *Backtracking line search* (Armijo) on the l1 exact-penalty merit
   ``E + rho |c|_1`` with ``rho > |lambda_new|_inf`` (Nocedal & Wright 2006, section 18.3).
   A full step is also taken when it halves the KKT residual, which avoids the Maratos
-  effect and round-off stalls near the solution. A refused full step is followed along
+  effect and round-off stalls near the solution. The Armijo tests are nonmonotone (Grippo,
+  Lampariello & Lucidi 1986; for SQP on this merit, Panier & Tits 1991): they compare with
+  the largest merit of the last ``NewtonKKT.nonmonotone_window`` iterates (at the current
+  penalty), so a step whose merit rises for a pass through the constraints' curvature is
+  taken, not corrected and searched. A refused full step is followed along
   ``z + alpha dz + alpha^2 s`` with the second-order correction ``s`` of curved constraints
   (:mod:`jaxtube._solver.kkt_step`), which avoids the Maratos effect far from it: first the
   corrected full step ``z + dz + s`` (``alpha = 1``; Nocedal & Wright 2006, Algorithm 18.3),
@@ -67,9 +70,10 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from .kkt_augmented import AugmentedSparseKKT
-from .kkt_linear import DenseKKT, SparseKKT, choose_route, is_blocks, kkt_pattern
+from .kkt_route import kkt_route
 from .kkt_step import (
     PendingStep,
+    RecentMerits,
     all_finite,
     first_trial_exponent,
     regularised_step,
@@ -99,6 +103,8 @@ class NewtonKKT(eqx.Module):
         max_steps: Newton steps per solve.
         max_backtracks: halvings of the step in the line search.
         max_regularisations: tenfold increases of ``mu`` in the curvature test.
+        nonmonotone_window: iterates whose largest merit the Armijo tests compare with
+            (module docstring); 1: the monotone tests.
         linear_solver: ``"auto"`` (sparse KLU on the CPU for a model giving Hessian blocks
             and a KKT system of at least ``SPARSE_CROSSOVER`` unknowns, augmented where the
             model also gives constraint factors, else dense), ``"dense"``, ``"sparse"`` or
@@ -111,6 +117,7 @@ class NewtonKKT(eqx.Module):
     max_steps: int = eqx.field(static=True, default=60)
     max_backtracks: int = eqx.field(static=True, default=30)
     max_regularisations: int = eqx.field(static=True, default=12)
+    nonmonotone_window: int = eqx.field(static=True, default=3)
     linear_solver: str = eqx.field(static=True, default="auto")
 
 
@@ -161,34 +168,12 @@ def _floor_kkt(route, hessian, jacobian):
     return route.kkt(hessian, jacobian, mu, MU_FLOOR * j_scale**2 / h_scale)
 
 
-def _kkt_route(hessian_fn, solver: NewtonKKT, args, z0, lam0):
-    """The linear-algebra route (``jaxtube._solver.kkt_linear``) for this problem, chosen at trace
-    time. A model's hessian is traced once here for its static block positions (its
-    values are unused, so the compiled program drops them); its ``constraint_pattern``
-    attribute, where set, is the constraint Jacobian's static pattern."""
-    n, m = z0.shape[0], lam0.shape[0]
-    blocks = None if hessian_fn is None else hessian_fn(z0, lam0, args)
-    given = blocks is not None and is_blocks(blocks)
-    pattern = getattr(hessian_fn, "constraint_pattern", None)
-    factors = getattr(hessian_fn, "constraint_factors", None)
-    factors_given = factors is not None and m > 0
-    # The pattern is counted before any symbolic analysis: a mostly dense one goes dense.
-    entries = (kkt_pattern(blocks, n, m, pattern)[0].size
-               if given and not factors_given else 0)
-    chosen = choose_route(solver.linear_solver, given, n + m, entries, factors_given)
-    if chosen == "augmented":
-        return AugmentedSparseKKT(blocks, factors(z0, args), n, m)
-    if chosen == "sparse":
-        return SparseKKT(blocks, n, m, pattern)
-    return DenseKKT(n, m)
-
-
 def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     n = z0.shape[0]
     m = lam0.shape[0]
     k = jax.eval_shape(objective, z0, args)[0].shape[0]
     dtype = z0.dtype
-    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    route = kkt_route(hessian_fn, solver.linear_solver, args, z0, lam0)
 
     def constraints_of(z):
         return objective(z, args)[1]
@@ -259,12 +244,12 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             jacobian_step=(jacobian @ dz if route.needs_jacobian else jnp.zeros((m,), dtype)),
             factors=factors, finite=finite & jnp.all(jnp.isfinite(dz)))
 
-    def line_search(z, lam, trial, c_full, skip):
+    def line_search(z, lam, trial, c_full, skip, reference):
         """After a refused full step: ``(z + alpha dz + alpha^2 s, lam + alpha (lam_new -
         lam), accepted)`` along the second-order correction ``s`` of curved constraints
         (kkt_step's docstring; ``s = 0`` without them), ``alpha = 1`` (where ``s != 0``),
-        then ``1/2, 1/4, ...`` until the Armijo test on the merit passes (no trial where
-        ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
+        then ``1/2, 1/4, ...`` until the Armijo test against the ``reference`` merit passes
+        (no trial where ``skip``: see :func:`jaxtube._solver.kkt_step.unless`)."""
         dz = trial.dz
         if m == 0:
             correction = jnp.zeros_like(dz)
@@ -283,7 +268,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             exponent = exponent + 1
             alpha = 0.5 ** exponent.astype(dtype)
             accepted = (merit(z + alpha * dz + alpha**2 * correction, trial.rho)
-                        <= trial.merit + 1e-4 * alpha * trial.slope)
+                        <= reference + 1e-4 * alpha * trial.slope)
             return alpha, accepted, exponent
 
         alpha, accepted, _ = jax.lax.while_loop(
@@ -293,7 +278,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
                 accepted)
 
     def body(carry):
-        z, lam, rho, step, _, _, res_g_last, res_c_last, trial, at_iterate = carry
+        z, lam, rho, step, _, _, res_g_last, res_c_last, trial, at_iterate, merits = carry
         # The point linearised: the proposed full step, or the iterate itself.
         pending = trial.pending
         point = jnp.where(pending, z + trial.dz, z)
@@ -309,12 +294,12 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # merit; otherwise the line search from z.
         full_ok = (res_g <= 0.5 * res_g_last) & (res_c <= jnp.maximum(0.5 * res_c_last,
                                                                       solver.constraint_tol))
-        armijo_full = (e + trial.rho * jnp.sum(jnp.abs(c))
-                       <= trial.merit + 1e-4 * trial.slope)
+        reference = merits.reference(trial.merit, trial.rho)
+        armijo_full = (e + trial.rho * jnp.sum(jnp.abs(c)) <= reference + 1e-4 * trial.slope)
         full = pending & (full_ok | armijo_full)
         refused = pending & ~full
         z_searched, lam_searched, searched = unless(
-            ~refused, lambda _: line_search(z, lam, trial, c, ~refused),
+            ~refused, lambda _: line_search(z, lam, trial, c, ~refused, reference),
             (z, lam, jnp.ones((), bool)))
         failed_search = refused & ~searched
         z = jnp.where(full, point, jnp.where(refused & searched, z_searched, z))
@@ -328,6 +313,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # the tangent stiffness, and a self-equilibrated problem with zero reactions still
         # has the internal and load terms it balances.
         linearised = ~refused
+        merits = merits.record(e, jnp.sum(jnp.abs(c)), linearised)
         # The Hessian at the linearised iterate: for its Newton step, and, at the solution,
         # for the implicit tangent (returned: the tangent's program needs no second copy).
         hessian = unless(refused, lambda _: lagrangian_hessian(z, lam), at_iterate[0])
@@ -351,7 +337,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         trial = eqx.tree_at(lambda t: t.pending, trial, trial.pending & ~stop)
         return (z, lam, rho, step, stop, code.astype(jnp.int32),
                 jnp.where(linearised, res_g, res_g_last),
-                jnp.where(linearised, res_c, res_c_last), trial, at_iterate)
+                jnp.where(linearised, res_c, res_c_last), trial, at_iterate, merits)
 
     def cond(carry):
         step, stop, trial = carry[3], carry[4], carry[8]
@@ -371,9 +357,10 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
     no_trial = eqx.tree_at(lambda t: t.factors, no_trial, identity)
     init = (z0, lam0, jnp.zeros((), dtype), jnp.zeros((), jnp.int32), jnp.zeros((), bool),
             jnp.ones((), jnp.int32), jnp.full((), jnp.inf, dtype), jnp.full((), jnp.inf, dtype),
-            no_trial, (no_hessian, no_jacobian))
-    z, lam, _, steps, _, code, res_g, res_c, _, at_iterate = jax.lax.while_loop(cond, body,
-                                                                                init)
+            no_trial, (no_hessian, no_jacobian),
+            RecentMerits.empty(solver.nonmonotone_window, dtype))
+    z, lam, _, steps, _, code, res_g, res_c, _, at_iterate, _ = jax.lax.while_loop(
+        cond, body, init)
     return z, lam, (code == 0, steps, code, res_g, res_c), at_iterate
 
 
@@ -414,7 +401,7 @@ def _equilibrium_jvp(objective, hessian_fn, solver, primals, tangents):
     # The KKT matrix at the solution from the Hessian and constraint Jacobian of the solve's
     # last linearised iterate (the solution, where it converged), solved on the route of the
     # Newton iterations (chosen again here, at trace time, by the same static rule).
-    route = _kkt_route(hessian_fn, solver, args, z0, lam0)
+    route = kkt_route(hessian_fn, solver.linear_solver, args, z0, lam0)
     z_dot, lam_dot, stats_dot = implicit_tangent(objective, route, args, tangents[0], z, lam,
                                                  _floor_kkt(route, *at_solution), stats)
     at_solution_dot = jax.tree.map(jnp.zeros_like, at_solution)
