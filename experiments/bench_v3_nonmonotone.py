@@ -1,8 +1,8 @@
-"""Benchmark: the Newton solver's nonmonotone full-step test on the ten V3 hanging-test cases.
+"""Benchmark: the Newton solver's nonmonotone Armijo tests on the ten V3 hanging-test cases.
 
 Every case of ``experiments/data/v3_hanging/campaign.toml`` solved by its route from the
 undeformed shape with the diagnosis' model (``results/v3_shape_diagnose/model.json``), once
-per ``NewtonKKT.nonmonotone_window`` (1: the monotone Armijo test), each window in its own
+per ``NewtonKKT.nonmonotone_window`` (1: the monotone Armijo tests), each window in its own
 process (a case's compiled program does not depend on the window's value otherwise). Counts
 per case the Newton steps, the KKT factorisations (every regularised step and every
 second-order correction: one KLU factorisation each on the augmented route, counted by a

@@ -1,4 +1,4 @@
-"""The nonmonotone full-step test of the Newton-KKT solver (``NewtonKKT.nonmonotone_window``):
+"""The nonmonotone Armijo tests of the Newton-KKT solver (``NewtonKKT.nonmonotone_window``):
 the recent merits it compares with, and the Maratos example of Nocedal & Wright (2006,
 Example 15.4) against its closed-form solution."""
 

@@ -103,8 +103,9 @@ class NewtonKKT(eqx.Module):
         max_steps: Newton steps per solve.
         max_backtracks: halvings of the step in the line search.
         max_regularisations: tenfold increases of ``mu`` in the curvature test.
-        nonmonotone_window: iterates whose largest merit the Armijo tests compare with
-            (module docstring); 1: the monotone tests.
+        nonmonotone_window: iterates whose largest merit the equilibrium solve's Armijo
+            tests compare with (module docstring); 1: the monotone tests. The implicit time
+            step's own iteration (``jaxtube._dynamics.step_newton``) keeps the monotone test.
         linear_solver: ``"auto"`` (sparse KLU on the CPU for a model giving Hessian blocks
             and a KKT system of at least ``SPARSE_CROSSOVER`` unknowns, augmented where the
             model also gives constraint factors, else dense), ``"dense"``, ``"sparse"`` or
