@@ -94,8 +94,8 @@ def second_order_correction(route, factors, c, jacobian_times_step, dz, c_full):
     return jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
 
 
-def unless(skip, step, skipped):
-    """``skipped`` if ``skip`` else ``step(None)``, written as a while-loop of at most one
+def unless(skip, step, skipped, operands):
+    """``skipped`` if ``skip`` else ``step(operands)``, written as a while-loop of at most one
     pass rather than ``lax.cond``.
 
     Under ``vmap`` a ``lax.cond`` with a batched predicate becomes a select that broadcasts
@@ -103,18 +103,26 @@ def unless(skip, step, skipped):
     sparsity pattern (``Ai cannot be vectorized``). A while-loop keeps its constants
     unbatched, and under ``vmap`` runs the step once for the members that need it, masked.
 
-    XLA may still execute the step when ``skip`` is set and discard its result (its CPU
-    compiler turns such a loop into straight-line code: measured with jax 0.10.2, the line
-    search ran its trials on every pass of the iteration). So a ``step`` whose own loops must
-    not run when skipped starts them finished (it is given ``skip``), and every solve it may
-    execute is well posed (a step not taken carries the identity's factors).
+    Two things keep XLA from running the step when ``skip`` is set (measured with jax
+    0.10.2 on the V3 kite: the line search's second-order correction, one KLU factorisation,
+    ran on every pass of the Newton iteration, two fifths of a hang's time): the number of
+    passes is data (``0`` or ``1``), so the compiler cannot bound the loop to one pass and
+    turn it into straight-line code; and the step reads ``operands`` (any PyTree) through an
+    optimisation barrier tied to the pass counter, so what it computes from values outside
+    the loop is not loop-invariant and is not hoisted out of it. Either alone still ran the
+    correction on every pass. A ``step`` must still be safe to run when skipped (its own
+    loops start finished where it is given ``skip``, and every solve it may execute is well
+    posed: a step not taken carries the identity's factors).
     """
 
-    def body(_):
-        return jnp.ones((), bool), step(None)
+    passes = jnp.where(skip, 0, 1).astype(jnp.int32)
 
-    return jax.lax.while_loop(lambda carry: ~carry[0] & ~skip, body,
-                              (jnp.zeros((), bool), skipped))[1]
+    def body(carry):
+        _, tied = jax.lax.optimization_barrier((carry[0], operands))
+        return carry[0] + 1, step(tied)
+
+    return jax.lax.while_loop(lambda carry: carry[0] < passes, body,
+                              (jnp.zeros((), jnp.int32), skipped))[1]
 
 
 class PendingStep(eqx.Module):

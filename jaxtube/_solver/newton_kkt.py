@@ -300,8 +300,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         full = pending & (full_ok | armijo_full)
         refused = pending & ~full
         z_searched, lam_searched, searched = unless(
-            ~refused, lambda _: line_search(z, lam, trial, c, ~refused, reference),
-            (z, lam, jnp.ones((), bool)))
+            ~refused, lambda ops: line_search(*ops[:4], ~refused, ops[4]),
+            (z, lam, jnp.ones((), bool)), (z, lam, trial, c, reference))
         failed_search = refused & ~searched
         z = jnp.where(full, point, jnp.where(refused & searched, z_searched, z))
         lam = jnp.where(full, lam_point, jnp.where(refused & searched, lam_searched, lam))
@@ -317,7 +317,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         merits = merits.record(e, jnp.sum(jnp.abs(c)), linearised)
         # The Hessian at the linearised iterate: for its Newton step, and, at the solution,
         # for the implicit tangent (returned: the tangent's program needs no second copy).
-        hessian = unless(refused, lambda _: lagrangian_hessian(z, lam), at_iterate[0])
+        hessian = unless(refused, lambda ops: lagrangian_hessian(*ops), at_iterate[0],
+                         (z, lam))
         at_iterate = (hessian, jax.tree.map(lambda new, kept: jnp.where(refused, kept, new),
                                             jacobian, at_iterate[1]))
         scale = jnp.maximum(jnp.max(jnp.abs(part_grads)), jnp.max(jnp.abs(jt_lam)))
@@ -327,10 +328,8 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         # The next step (skipped once converged: the convergence test needs only the
         # gradient).
         take_step = linearised & ~converged & finite_residual & (step < solver.max_steps)
-        trial = unless(~take_step,
-                        lambda _: newton_step(z, lam, rho, e, c, grad_e, jacobian, hessian,
-                                              ~take_step),
-                        no_trial)
+        trial = unless(~take_step, lambda ops: newton_step(*ops, ~take_step), no_trial,
+                       (z, lam, rho, e, c, grad_e, jacobian, hessian))
         not_finite = (linearised & ~finite_residual) | (take_step & ~trial.finite)
         stop = converged | not_finite | failed_search
         code = jnp.where(converged, 0, jnp.where(not_finite, 3,
