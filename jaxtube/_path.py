@@ -106,6 +106,9 @@ class DrivenEquilibrium(eqx.Module):
     Attributes:
         equilibrium: the :class:`Solution` under the dead load (a force-control solve from
             the driven state; its ``converged`` is the solver's own verdict).
+        start: the controlled solve at the start's own displacement (from ``initial``: no
+            Newton step where it is an equilibrium without the driven load; from the
+            undeformed shape: the other loads' equilibrium with the node held there).
         path: the displacement-controlled steps, leaves with a leading ``[K]`` axis, ``K``
             the ``steps`` allowed (``control_displacement`` [m], ``control_force`` [N], each
             step's convergence; a refused step reports ``converged`` False and leaves the
@@ -117,6 +120,7 @@ class DrivenEquilibrium(eqx.Module):
     """
 
     equilibrium: Solution
+    start: Solution
     path: Solution
     target_force: Array
     reached: Array
@@ -205,7 +209,8 @@ def drive_to_dead_load(
             is driven, its other components act as dead loads throughout.
         initial: a :class:`Solution` of the same structure without the node's load along
             ``direction`` (e.g. the gravity hang) to start from; ``None``: the undeformed
-            shape.
+            shape, ``u0 = 0`` (the loop's first solve then finds the other loads'
+            equilibrium with the node held at its undeformed position).
         steps: the most controlled solves (a static count: one compiled program).
         max_increment: largest drive increment [m] per step.
         force_tolerance: relative force mismatch at which the drive stops.
@@ -281,7 +286,8 @@ def drive_to_dead_load(
              jnp.asarray(max_increment, dtype=float), jnp.zeros((), bool), empty)
     (taken, state, lam, _, _, _, _, _, reached, path) = jax.lax.while_loop(
         lambda carry: (carry[0] <= steps) & ~carry[8], step, start)
+    first = jax.tree_util.tree_map(lambda x: x[0], path)
     path = jax.tree_util.tree_map(lambda x: x[1:], path)
     equilibrium = solve_load_level(structure, params, geometry, None, state, lam[:-1], solver,
                                    1.0)
-    return DrivenEquilibrium(equilibrium, path, target, reached, taken - 1)
+    return DrivenEquilibrium(equilibrium, first, path, target, reached, taken - 1)

@@ -36,6 +36,11 @@ def test_point_node_driven_across_a_slack_taut_change_matches_the_closed_form():
     tension = np.asarray(driven.equilibrium.line_tension)
     assert tension[0] == 0.0  # the upper line is slack: exactly nothing
     np.testing.assert_allclose(tension[1], force, rtol=1e-10)
+    # The start: the point held at its undeformed position, where the stretched lines
+    # balance; the actuator carries nothing.
+    assert bool(driven.start.converged)
+    assert float(driven.start.control_displacement) == 0.0
+    assert abs(float(driven.start.control_force)) <= 1e-12
     # The path: every accepted step converged, and it crossed the slack-taut change; the
     # drive stopped once it carried the load, the steps after it not solved.
     taken = int(driven.steps_taken)

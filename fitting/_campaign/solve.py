@@ -7,10 +7,12 @@ Routes (``CampaignCase.route``), each from the undeformed shape:
 - ``"stages"``: gravity and loads stepped through ``[hang] load_stages``
   (:func:`jaxtube.hang_kite`), the first stage's blend ``first_stage_tension_smoothing``,
   the later ones the model's, so the equilibrium reported is the model's;
-- ``"drive"``: a hanging mass: gravity first (the mass taken off), then the mass's node
-  driven along gravity until the actuator carries its weight
-  (:func:`jaxtube.drive_to_dead_load`), then the dead-load solve from there: the equilibrium
-  reported. Force control fails on the V3 kite's centre loads (experiments/README.md).
+- ``"drive"``: a hanging mass: its node held where the model file has it while gravity
+  acts (the mass taken off), then driven along gravity until the actuator carries its
+  weight (:func:`jaxtube.drive_to_dead_load` from the undeformed shape), then the
+  dead-load solve from there: the equilibrium reported. Force control fails on the V3
+  kite's centre loads (experiments/README.md); a gravity hang before the drive took more
+  Newton steps in all (``docs/performance.md``).
 
 The programs take the parameters (so every pressure, load and model value) and, for the
 first two routes, the stages and blend widths as traced arguments: each is compiled once per
@@ -53,7 +55,8 @@ class CaseSolution:
             the last entry is the case's).
         positions: ``[N, 3]`` node positions [m] in the model file's numbering and frame.
         converged: the equilibrium reported converged.
-        newton_iterations: per solve (stages, then the dead-load solve of a drive).
+        newton_iterations: per solve (the stages; a drive's first controlled solve and its
+            dead-load solve, its steps in ``drive``).
         stage_converged: per solve, likewise.
         drive: the drive's record (route ``"drive"``), else ``None``.
         hang: the route in words.
@@ -164,14 +167,9 @@ class CaseSolver:
                               jnp.asarray(warm))
 
         def run(params):
-            gravity_only = jt.with_node_dead_load(structure, params, drive_node, jnp.zeros(3))
-            stages = jt.hang_kite(structure, gravity_only, solver=solver,
-                                  load_factors=(1.0,) * len(hang.load_stages))
-            hung = jax.tree_util.tree_map(lambda x: x[-1], stages)
-            driven = jt.drive_to_dead_load(
-                structure, params, drive_node, params.gravity, initial=hung, solver=solver,
-                steps=hang.drive_steps, max_increment=hang.drive_increment_m)
-            return stages, driven
+            return jt.drive_to_dead_load(structure, params, drive_node, params.gravity,
+                                         solver=solver, steps=hang.drive_steps,
+                                         max_increment=hang.drive_increment_m)
 
         return key, run, (imported.params,)
 
@@ -253,12 +251,17 @@ class CaseSolver:
         result = jax.block_until_ready(program(*arguments))
         seconds = time.perf_counter() - started
         if case.route != "drive":
-            stages, solution, drive = result, result, None
+            solution, drive = result, None
+            iterations = np.asarray(result.iterations).tolist()
+            stage_converged = np.asarray(result.converged).tolist()
             factors, blends = arguments[1:3]
             words = (f"load factors {np.asarray(factors).tolist()} ({case.route}), the "
                      f"lines' blend widths {np.asarray(blends).tolist()}")
         else:
-            stages, driven = result
+            driven = result
+            iterations = [int(driven.start.iterations), int(driven.equilibrium.iterations)]
+            stage_converged = [bool(driven.start.converged),
+                               bool(driven.equilibrium.converged)]
             solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
             taken = int(driven.steps_taken)
             accepted = np.asarray(driven.path.converged)[:taken]
@@ -271,15 +274,11 @@ class CaseSolver:
                      "newton_iterations": np.asarray(driven.path.iterations)[:taken].tolist(),
                      "step_converged": accepted.tolist()}
             hang = self.campaign.hang
-            words = (f"gravity (the mass taken off), then the mass at node "
-                     f"{case.loads[0].node} by displacement control "
-                     f"(jaxtube.drive_to_dead_load, at most {hang.drive_steps} steps of at most "
-                     f"{hang.drive_increment_m} m), then the dead-load solve")
-        iterations = np.asarray(stages.iterations).tolist()
-        stage_converged = np.asarray(stages.converged).tolist()
-        if drive is not None:
-            iterations.append(int(np.asarray(solution.iterations)[-1]))
-            stage_converged.append(bool(np.asarray(solution.converged)[-1]))
+            words = (f"node {case.loads[0].node} held where the model file has it under "
+                     f"gravity (the mass taken off), then driven along gravity until it "
+                     f"carries the mass (jaxtube.drive_to_dead_load, at most "
+                     f"{hang.drive_steps} steps of at most {hang.drive_increment_m} m), then "
+                     f"the dead-load solve")
         positions = imported.kite_positions(np.asarray(solution.node_position)[-1])
         return CaseSolution(case, imported, solution, positions,
                             bool(np.asarray(solution.converged)[-1]), iterations,
@@ -288,10 +287,10 @@ class CaseSolver:
 
 def _last_solve(result, drive: bool):
     """``(solution with a leading stage axis, Newton iterations in all)`` of a route's
-    result (a hang's stages, or a drive's ``(stages, driven)``: its dead-load solve)."""
+    result (a hang's stages, or a drive's :class:`jaxtube.DrivenEquilibrium`: its dead-load
+    solve)."""
     if not drive:
         return result, jnp.sum(result.iterations)
-    stages, driven = result
-    solution = jax.tree_util.tree_map(lambda x: x[None], driven.equilibrium)
-    return solution, (jnp.sum(stages.iterations) + jnp.sum(driven.path.iterations)
-                      + driven.equilibrium.iterations)
+    solution = jax.tree_util.tree_map(lambda x: x[None], result.equilibrium)
+    return solution, (result.start.iterations + jnp.sum(result.path.iterations)
+                      + result.equilibrium.iterations)
