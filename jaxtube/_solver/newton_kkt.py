@@ -245,7 +245,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
             jacobian_step=(jacobian @ dz if route.needs_jacobian else jnp.zeros((m,), dtype)),
             factors=factors, finite=finite & jnp.all(jnp.isfinite(dz)))
 
-    def line_search(z, lam, trial, c_full, skip, reference):
+    def line_search(z, lam, trial, c_full, reference, skip):
         """After a refused full step: ``(z + alpha dz + alpha^2 s, lam + alpha (lam_new -
         lam), accepted)`` along the second-order correction ``s`` of curved constraints
         (kkt_step's docstring; ``s = 0`` without them), ``alpha = 1`` (where ``s != 0``),
@@ -300,7 +300,7 @@ def _newton(objective, hessian_fn, solver: NewtonKKT, args, z0, lam0):
         full = pending & (full_ok | armijo_full)
         refused = pending & ~full
         z_searched, lam_searched, searched = unless(
-            ~refused, lambda ops: line_search(*ops[:4], ~refused, ops[4]),
+            ~refused, lambda ops: line_search(*ops, ~refused),
             (z, lam, jnp.ones((), bool)), (z, lam, trial, c, reference))
         failed_search = refused & ~searched
         z = jnp.where(full, point, jnp.where(refused & searched, z_searched, z))
