@@ -2,9 +2,14 @@
 the change (``--after``, e.g. ``experiments/results/diagnosis_study/baseline_restart/``)
 against the same designs' records of the rule as it is (``--before``, the study's
 ``experiments/results/diagnosis_study/``), design by design, and the issue's targets from
-each (docs/diagnosis-study.md, "The baseline's basin").
+each (docs/diagnosis-study.md, "The baseline's basin" and fix 6 of "Why the final model
+missed the noise floor").
 
-    python -m experiments.study_changes --designs 85
+    python -m experiments.study_changes --designs 85 \
+        --before experiments/results/diagnosis_study/one_refit_start
+    python -m experiments.study_changes --designs 130 \
+        --before experiments/results/diagnosis_study/one_refit_start \
+        --after experiments/results/diagnosis_study
 
 Per design whose physical verdict or final RMSE changed: the hidden effect, what was named
 and the final RMSE over the noise floor before and after, and what restarting the baseline

@@ -126,7 +126,7 @@ def _box_problem():
 def test_a_refit_at_the_edge_of_its_box_is_repeated_from_the_typical_size(monkeypatch):
     """From the null the refit ends at the box's edge (+4, another basin): it is repeated
     from the typical size (-3, the tension-field tube's) and the better refit is kept; a
-    refit that ends inside the box is not repeated."""
+    refit that ends inside the box past the typical size is not repeated."""
     from fitting._diagnose import selection
 
     problem, names = _box_problem(), _box_problem().names
@@ -140,9 +140,26 @@ def test_a_refit_at_the_edge_of_its_box_is_repeated_from_the_typical_size(monkey
     assert refit.vector[0] == pytest.approx(-3.1)
     calls.clear()
     monkeypatch.setattr(selection, "fit_problem", _refit_stub(
-        {(0.0, 0.0): ((-2.6, 0.1), 12.0)}, calls))
+        {(0.0, 0.0): ((-3.4, 0.3), 12.0)}, calls))
     refit, _ = selection.refit_candidate(problem, names, ft.RadiusScaling, None)
-    assert calls == [(0.0, 0.0)] and refit.vector[0] == pytest.approx(-2.6)
+    assert calls == [(0.0, 0.0)] and refit.vector[0] == pytest.approx(-3.4)
+
+
+def test_a_refit_that_stops_short_of_the_typical_size_is_repeated_from_it(monkeypatch):
+    """From the null the refit stalls inside the box, short of the typical size (a local
+    minimum on the way, or a small effect: the null start alone cannot tell): it is repeated
+    from the typical size and the lower chi^2 is kept, whichever start gave it."""
+    from fitting._diagnose import selection
+
+    problem, names = _box_problem(), _box_problem().names
+    typical = tuple(p.typical for p in ft.RadiusScaling.parameters)
+    for from_typical, expected in ((((-3.1, -2.9), 10.0), -3.1), (((-0.5, 0.0), 40.0), -0.2)):
+        calls = []
+        monkeypatch.setattr(selection, "fit_problem", _refit_stub(
+            {(0.0, 0.0): ((-0.2, 0.1), 30.0), typical: from_typical}, calls))
+        refit, failure = selection.refit_candidate(problem, names, ft.RadiusScaling, None)
+        assert calls == [(0.0, 0.0), typical] and not failure
+        assert refit.vector[0] == pytest.approx(expected)
 
 
 def _ranked_against(chi2_now: float, chi2_refit: float, monkeypatch, points: int = 100):
@@ -340,3 +357,22 @@ def test_the_refined_law_starts_on_the_current_one():
                                            rel=1e-12)
     assert list(b_k) == [1.0, 1.0, 0.9, 0.9, 1.1] and list(b_m) == [1.0, 1.0, 1.05, 1.05, 0.95]
     assert start[-1] == 7e-5
+
+
+def test_lengths_within_twenty_percent_are_not_called_a_single_length():
+    """Curves at 1.0 and 1.2 m do not vary the length enough to separate a compliance (the
+    ratio must exceed 1.2), and the advice says so without calling them one length."""
+    from fitting._diagnose.separation import _spread_words
+
+    def curve(name, length):
+        return ft.MeasuredCurve(name=name, setup="cantilever_tip", pressure=2e4, radius=0.1,
+                                length=length, deflection=np.array([0.01, 0.02]),
+                                force=np.array([1.0, 2.0]))
+
+    data = ft.MeasuredData((curve("a", 1.0), curve("b", 1.0), curve("c", 1.2)))
+    varied, fixed = _spread_words(data, ("length", "radius"))
+    assert varied == []
+    assert fixed == ["the data's lengths differ by 20 % or less (1-1.2 m)",
+                     "the data have a single radius (100 mm)"]
+    varied, _ = _spread_words(ft.MeasuredData((curve("a", 1.0), curve("c", 1.25))), ("length",))
+    assert varied == ["length"]

@@ -22,13 +22,13 @@ point out of the feasible set while the refit, with the pivots moving along, fin
 improvement inside it. So it never vetoes a candidate.
 
 **Refit** with the candidate freed, from the current optimum, starting from the candidate's
-null and, when that refit ends with a candidate parameter on a bound (still on a null that
-is a bound, where a projected Levenberg-Marquardt step can stall, or at the far edge of its
-box, a basin other than the physical one), again from its typical size; the better refit is
-kept (:func:`fitting._diagnose.selection.refit_candidate`). From it: ``Delta chi^2``,
-``Delta BIC = Delta chi^2 + q ln n`` (Schwarz 1978; chi^2 in units of the one noise estimate,
-so all models are compared on the same scale), ``Delta AIC = Delta chi^2 + 2 q``, and the
-blocked cross-validated error.
+null and, unless that refit ended inside its box past the typical size (it may have stalled
+on a null that is a bound, stopped in a local minimum on the way, or gone to the far edge
+of its box, a basin other than the physical one), again from its typical size; the better
+refit is kept (:func:`fitting._diagnose.selection.refit_candidate`). From it:
+``Delta chi^2``, ``Delta BIC = Delta chi^2 + q ln n`` (Schwarz 1978; chi^2 in units of the
+one noise estimate, so all models are compared on the same scale),
+``Delta AIC = Delta chi^2 + 2 q``, and the blocked cross-validated error.
 
 **Likelihood-ratio test** (the decision): ``LR = chi^2_current - chi^2_refit`` against
 ``chi^2_q``, or, for parameters whose null is on a bound, the mixture ``0.5 chi^2_0 + 0.5

@@ -46,6 +46,9 @@ def _spread_words(data: MeasuredData, quantities) -> tuple[list[str], list[str]]
         unit, factor = SPECIMEN_UNITS[quantity]
         if values.size > 1 and values.max() / values.min() > 1.2:
             varied.append(quantity)
+        elif values.size > 1:
+            fixed.append(f"the data's {PLURALS[quantity]} differ by 20 % or less "
+                         f"({values.min() * factor:.3g}-{values.max() * factor:.3g} {unit})")
         else:
             fixed.append(f"the data have a single {quantity} ({values[0] * factor:.3g} {unit})")
     return varied, fixed
