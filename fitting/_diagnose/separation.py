@@ -16,6 +16,9 @@ from .score import _share, absorbed_free_effects, canonical_correlation
 ABSORBED_SHARE = 0.05
 CONFOUNDED_CORRELATION = 0.95
 PLURALS = {"pressure": "pressures", "radius": "radii", "length": "lengths"}
+#: The data vary a specimen quantity when its largest value exceeds its smallest by more
+#: than this ratio.
+VARIED_RATIO = 1.2
 
 
 def _effect_values(result: FitResult) -> dict:
@@ -44,10 +47,11 @@ def _spread_words(data: MeasuredData, quantities) -> tuple[list[str], list[str]]
     for quantity in quantities:
         values = np.unique([getattr(curve, quantity) for curve in data])
         unit, factor = SPECIMEN_UNITS[quantity]
-        if values.size > 1 and values.max() / values.min() > 1.2:
+        if values.size > 1 and values.max() / values.min() > VARIED_RATIO:
             varied.append(quantity)
         elif values.size > 1:
-            fixed.append(f"the data's {PLURALS[quantity]} differ by 20 % or less "
+            fixed.append(f"the data's {PLURALS[quantity]} differ by "
+                         f"{(VARIED_RATIO - 1) * 100:.0f} % or less "
                          f"({values.min() * factor:.3g}-{values.max() * factor:.3g} {unit})")
         else:
             fixed.append(f"the data have a single {quantity} ({values[0] * factor:.3g} {unit})")
